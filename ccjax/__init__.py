@@ -1,0 +1,1 @@
+"""ccjax: JAX-accelerated, differentiable computational colour constancy."""

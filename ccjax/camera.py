@@ -1,0 +1,97 @@
+"""Cameras: sensor curves on the ccjax grid and the response of colour signals.
+
+Image formation (Barnard 1999 eq. 2.5 / 4.1, discretised as in §2.2): the linear response of
+channel k to a colour signal ``L`` is ``rho_k = sum_lambda L(lambda) R_k(lambda)``, i.e.
+``signal @ sensors``. A camera may carry a linearisation ``F`` (chapter 3); the synthetic world
+works on linear responses and never needs it.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ccjax import data
+from ccjax.spectra import N_WAVELENGTHS
+
+
+class Camera(eqx.Module):
+    """A camera: three sensor curves on :data:`ccjax.spectra.WAVELENGTHS`.
+
+    Attributes:
+        sensors: ``(101, 3)`` spectral sensitivities (R, G, B columns), non-negative.
+        name: a label for printing.
+        linearisation: optional callable mapping raw pixel values to linear responses
+            (Barnard 1999 ch. 3, ``F``); ``None`` means the camera is linear.
+    """
+
+    sensors: Float[Array, "101 3"]
+    name: str = eqx.field(static=True, default="custom")
+    linearisation: Callable | None = eqx.field(static=True, default=None)
+
+    def __check_init__(self):
+        shape = np.shape(self.sensors)
+        if shape != (N_WAVELENGTHS, 3):
+            raise ValueError(f"sensors: expected shape ({N_WAVELENGTHS}, 3), got {shape}")
+
+    @classmethod
+    def from_array(cls, sensors, name: str = "custom") -> "Camera":
+        """Build a camera from a ``(101, 3)`` array, validating it (finite, non-negative)."""
+        sensors = np.asarray(sensors, dtype=np.float64)
+        if sensors.shape != (N_WAVELENGTHS, 3):
+            raise ValueError(f"sensors: expected shape ({N_WAVELENGTHS}, 3), got {sensors.shape}")
+        if not np.all(np.isfinite(sensors)):
+            raise ValueError("sensors: contains NaN or infinite values")
+        if np.any(sensors < 0):
+            raise ValueError("sensors: contains negative sensitivities")
+        if np.any(sensors.sum(axis=0) <= 0):
+            raise ValueError("sensors: a channel has no sensitivity anywhere")
+        return cls(sensors=jnp.asarray(sensors, dtype=jnp.float32), name=name)
+
+    @classmethod
+    def from_name(cls, name: str, data_dir: str | os.PathLike | None = None) -> "Camera":
+        """Look a camera up by name: embedded rawtoaces cameras first, then external data.
+
+        Arguments:
+            name: e.g. ``"Canon EOS 5D Mark II"`` (embedded), ``"Sony DXC-930"`` or
+                ``"Jiang: Canon 5D Mark II"`` (external data directory).
+            data_dir: external data directory (see :func:`ccjax.data.find_data_file`).
+        """
+        embedded = data.rawtoaces_cameras()
+        if name in embedded:
+            return cls.from_array(embedded[name], name=name)
+        if name == "Sony DXC-930":
+            return cls.from_array(data.sony_dxc930(data_dir), name=name)
+        if name.startswith("Jiang: "):
+            jiang = data.jiang_cameras(data_dir)
+            if name in jiang:
+                return cls.from_array(jiang[name], name=name)
+        known = ", ".join(sorted(embedded)[:6])
+        raise ValueError(
+            f"camera: unknown name {name!r}. Embedded cameras include {known}, ...; "
+            "'Sony DXC-930' and 'Jiang: <model>' need the external data; ccjax.cameras() lists all."
+        )
+
+    def response(self, signal: Float[Array, "... 101"]) -> Float[Array, "... 3"]:
+        """Linear camera response of colour signals (reflectance x illuminant), ``signal @ sensors``."""
+        return jnp.asarray(signal) @ self.sensors
+
+
+def cameras(data_dir: str | os.PathLike | None = None) -> dict[str, str]:
+    """Every camera ccjax can build, name -> source (``"embedded"`` or ``"external"``).
+
+    External cameras are listed only when the external data directory is found.
+    """
+    listing = {name: "embedded (rawtoaces-data, Apache-2.0)" for name in data.rawtoaces_cameras()}
+    try:
+        data.sony_dxc930(data_dir)
+        listing["Sony DXC-930"] = "external (sfu_barnard)"
+        listing.update({name: "external (Jiang et al. 2013)" for name in data.jiang_cameras(data_dir)})
+    except data.DataNotFoundError:
+        pass
+    return listing

@@ -1,0 +1,83 @@
+"""The estimator contract (DESIGN.md §2): a fitted model is an ``eqx.Module`` whose ``__call__``
+estimates ONE scene, ``model(rgb (P, 3), mask (P,)) -> Estimate``; batching is ``jax.vmap``."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+TINY = 1e-12
+
+
+class Estimate(eqx.Module):
+    """An illuminant estimate.
+
+    Attributes:
+        illuminant: ``(..., 3)`` camera RGB of a perfect white under the estimated light. Its
+            magnitude is meaningful for 3-D methods and arbitrary for chromaticity methods.
+        ok: ``(...)`` False where the method fell back (no data, no feasible solution, ...).
+    """
+
+    illuminant: Float[Array, "... 3"]
+    ok: Bool[Array, "..."]
+
+
+class Estimator(eqx.Module):
+    """Base class of fitted estimators.
+
+    Class attributes:
+        label: the registry label it was built for.
+        input_kind: ``"surfaces"`` (a list of RGBs with a mask) or ``"image"`` (``(H, W, 3)``).
+        estimates_brightness: True for 3-D methods whose estimate magnitude is meaningful (the
+            RGB and R+G+B errors and the RGB mapping error apply to them).
+    """
+
+    input_kind: ClassVar[str] = "surfaces"
+    estimates_brightness: ClassVar[bool] = False
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+        raise NotImplementedError
+
+
+def with_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, "3"]) -> Estimate:
+    """Return ``illuminant`` where ``usable``, else ``fallback`` with ``ok=False`` (never NaN)."""
+    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > TINY)
+    safe = jnp.where(usable, jnp.nan_to_num(illuminant), fallback)
+    return Estimate(illuminant=safe, ok=usable)
+
+
+def validate_scene(rgb, mask, *, name: str = "rgb") -> tuple[np.ndarray, np.ndarray]:
+    """Check estimator input at the Python boundary; raise ``ValueError`` naming the argument.
+
+    Arguments:
+        rgb: ``(P, 3)`` or ``(B, P, 3)`` non-negative finite floats.
+        mask: ``None`` (all valid) or booleans of shape ``rgb.shape[:-1]``.
+
+    Returns:
+        ``(rgb, mask)`` as NumPy float32 / bool arrays.
+    """
+    array = np.asarray(rgb)
+    if array.dtype == object or not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
+        raise ValueError(f"{name}: expected a real numeric array, got dtype {array.dtype}")
+    if array.ndim not in (2, 3) or array.shape[-1] != 3:
+        raise ValueError(f"{name}: expected shape (P, 3) or (B, P, 3), got {array.shape}")
+    if array.shape[-2] == 0:
+        raise ValueError(f"{name}: has no pixels (P = 0); pass a mask to mark missing data instead")
+    array = array.astype(np.float32)
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name}: contains NaN or infinite values")
+    if np.any(array < 0):
+        raise ValueError(f"{name}: contains negative values (linear camera RGB is non-negative)")
+    if mask is None:
+        mask_array = np.ones(array.shape[:-1], bool)
+    else:
+        mask_array = np.asarray(mask)
+        if mask_array.dtype != bool:
+            raise ValueError(f"mask: expected a boolean array, got dtype {mask_array.dtype}")
+        if mask_array.shape != array.shape[:-1]:
+            raise ValueError(f"mask: expected shape {array.shape[:-1]}, got {mask_array.shape}")
+    return array, mask_array

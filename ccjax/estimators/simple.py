@@ -1,0 +1,125 @@
+"""Baselines and statistical estimators: NOTHING, AVE-ILLUM, GW, DB-GW, RETINEX, shades of grey.
+
+Definitions follow Barnard 1999 §4.5 (spec ch02-04 §6.1–6.3). Every estimator respects the mask,
+is jit/vmap-able and falls back (``ok=False``) to the world's average training illuminant when a
+scene has no usable data (spec ch02-04 §10 item 27).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
+from ccjax.world import World
+
+
+def average_illuminant(world: World) -> Float[Array, "3"]:
+    """Mean white response over the (normalised) training illuminants: AVE-ILLUM's answer."""
+    return jnp.mean(world.train_whites, axis=0)
+
+
+class Constant(Estimator):
+    """A scene-independent estimate: NOTHING (the canonical white) or AVE-ILLUM (§4.5)."""
+
+    illuminant: Float[Array, "3"]
+
+    def __call__(self, rgb, mask) -> Estimate:
+        return Estimate(illuminant=self.illuminant, ok=jnp.asarray(True))
+
+
+class GreyWorld(Estimator):
+    """Grey world, ``w = mean(rho) * (w_C / g_C)`` (§4.5.1, eq. 5.5).
+
+    ``scale = w_C / g_C``: 2 for GW (grey = 50 % reflectance), the canonical white over the
+    reflectance database's mean canonical RGB for DB-GW.
+    """
+
+    scale: Float[Array, "3"]
+    fallback: Float[Array, "3"]
+    estimates_brightness = True
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+        count = jnp.sum(mask)
+        mean = jnp.sum(jnp.where(mask[:, None], rgb, 0.0), axis=0) / jnp.maximum(count, 1)
+        return with_fallback(mean * self.scale, count > 0, self.fallback)
+
+
+class ShadesOfGrey(Estimator):
+    """Shades of grey (Finlayson & Trezzi 2004): ``w = 2 * (mean(rho^p))^(1/p)`` per channel.
+
+    The factor 2 is grey world's, so ``p = 1`` is exactly GW; as ``p -> inf`` the chromaticity
+    tends to RETINEX's. The magnitude is only meaningful for ``p = 1``.
+    """
+
+    p: float
+    fallback: Float[Array, "3"]
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+        count = jnp.sum(mask)
+        # Normalise by the brightest value first so rho^p neither overflows nor underflows.
+        peak = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
+        safe_peak = jnp.where(peak > TINY, peak, 1.0)
+        powered = jnp.where(mask[:, None], rgb / safe_peak, 0.0) ** self.p
+        mean = jnp.sum(powered, axis=0) / jnp.maximum(count, 1)
+        positive = mean > 0
+        root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
+        return with_fallback(2.0 * safe_peak * root, (count > 0) & (peak > TINY), self.fallback)
+
+
+class MaxRGB(Estimator):
+    """RETINEX in its limiting form, per-channel maximum ``w_k = max_i rho_ik`` (§4.5.2).
+
+    With ``temperature`` set, a soft maximum ``t * logsumexp(rho / t)`` over valid pixels gives
+    gradients to every pixel (DESIGN.md §5); it tends to the hard maximum as ``t -> 0``.
+    """
+
+    fallback: Float[Array, "3"]
+    temperature: float | None = None
+    estimates_brightness = True
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+        count = jnp.sum(mask)
+        if self.temperature is None:
+            maximum = jnp.max(jnp.where(mask[:, None], rgb, 0.0), axis=0)
+        else:
+            t = self.temperature
+            scaled = jnp.where(mask[:, None], rgb / t, 0.0)
+            top = jax.lax.stop_gradient(jnp.max(scaled, axis=0))
+            total = jnp.sum(jnp.where(mask[:, None], jnp.exp(scaled - top), 0.0), axis=0)
+            maximum = t * (top + jnp.log(jnp.maximum(total, TINY)))
+        return with_fallback(maximum, count > 0, self.fallback)
+
+
+# ---------------------------------------------------------------------------------------------
+# fit functions (label -> model), used by the registry
+
+
+def fit_nothing(world: World) -> Constant:
+    return Constant(illuminant=world.canonical_white)
+
+
+def fit_ave_illum(world: World) -> Constant:
+    return Constant(illuminant=average_illuminant(world))
+
+
+def fit_gw(world: World) -> GreyWorld:
+    return GreyWorld(scale=jnp.full(3, 2.0), fallback=average_illuminant(world))
+
+
+def fit_db_gw(world: World) -> GreyWorld:
+    database_grey = jnp.mean(world.canonical_rgb, axis=0)
+    return GreyWorld(scale=world.canonical_white / database_grey, fallback=average_illuminant(world))
+
+
+def fit_retinex(world: World, temperature: float | None = None) -> MaxRGB:
+    if temperature is not None and not temperature > 0:
+        raise ValueError(f"temperature: expected a positive number or None, got {temperature!r}")
+    return MaxRGB(fallback=average_illuminant(world), temperature=temperature)
+
+
+def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
+    if not p >= 1:
+        raise ValueError(f"p: expected a Minkowski norm >= 1, got {p!r}")
+    return ShadesOfGrey(p=float(p), fallback=average_illuminant(world))
