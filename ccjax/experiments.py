@@ -256,3 +256,127 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# Reproduction of the thesis' tables
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One sweep of a table's protocol and which table columns it fills.
+
+    Attributes:
+        n_surfaces: surfaces per scene.
+        columns: table column -> per-scene statistic (one of :data:`STATISTICS`).
+        specular, noise, clip: scene options (clip on ccjax's unit scale).
+    """
+
+    n_surfaces: int
+    columns: dict
+    specular: object = None
+    noise: object = None
+    clip: float | None = None
+
+
+_BASIC_COLUMNS = {name: name for name in STATISTICS}
+
+PROTOCOLS: dict[str, list[Condition]] = {
+    # Table 4.2: 8 matte surfaces (§4.7).
+    "4.2": [Condition(8, _BASIC_COLUMNS)],
+    # Table 4.3: 8 surfaces, 25 % specular + U(0, 2) x white.
+    "4.3": [Condition(8, _BASIC_COLUMNS, specular=True)],
+    # Table 4.4: specular scenes, surfaces with any channel above 400/300/250 (thesis units) discarded.
+    "4.4": [
+        Condition(8, {f"angular@{level}": "angular", f"rg@{level}": "rg"}, specular=True, clip=level / 255.0)
+        for level in (400, 300, 250)
+    ],
+}
+
+
+@dataclass
+class Reproduction:
+    """Our value, the thesis' value and their relative difference per (method, column)."""
+
+    table: str
+    rows: list[dict]
+
+    def to_json(self) -> str:
+        return json.dumps({"table": self.table, "rows": self.rows}, indent=1)
+
+    def text(self) -> str:
+        lines = [f"Table {self.table}: ours vs thesis (RGB-valued errors in thesis units, white = 255)"]
+        lines.append(f"{'method':<22}{'column':<14}{'ours':>10}{'thesis':>10}{'diff':>9}  ok")
+        for row in self.rows:
+            lines.append(
+                f"{row['method']:<22}{row['column']:<14}{row['ours']:>10.4g}{row['thesis']:>10.4g}"
+                f"{row['relative_difference']:>+9.1%}  {row['ok_fraction']:.0%}"
+            )
+        return "\n".join(lines)
+
+
+def reproduce(
+    table: str,
+    world: World,
+    methods: Sequence[str] | None = None,
+    n_scenes: int = 1000,
+    key: jax.Array | None = None,
+    progress: bool = True,
+) -> Reproduction:
+    """Run a thesis table's protocol on ``world`` and compare with the thesis' numbers.
+
+    Arguments:
+        table: a table id with a protocol in :data:`PROTOCOLS` (``"4.2"``, ``"4.3"``, ``"4.4"``).
+        world: normally :meth:`World.barnard1999`.
+        methods: labels (default: every method of the table that ccjax registers).
+        n_scenes: scenes per condition (1000 in the thesis).
+        key: PRNG key (default ``jax.random.key(0)``).
+
+    Returns:
+        A :class:`Reproduction`; ``relative_difference = ours / thesis - 1``.
+    """
+    from ccjax import thesis
+
+    if table not in PROTOCOLS or table not in thesis.TABLES:
+        raise ValueError(f"table: no protocol for {table!r}; available: {sorted(PROTOCOLS)}")
+    targets = thesis.TABLES[table]
+    if methods is None:
+        methods = [m for m in targets if _is_registered(m)]
+    unknown = [m for m in methods if m not in targets]
+    if unknown:
+        raise ValueError(f"methods: {unknown} are not rows of Table {table}")
+    rows = []
+    for condition in PROTOCOLS[table]:
+        result = sweep(
+            world, list(methods), [condition.n_surfaces], n_scenes, key,
+            specular=condition.specular, noise=condition.noise, clip=condition.clip, progress=progress,
+        )
+        for method in methods:
+            for column, statistic in condition.columns.items():
+                if column not in targets[method] or statistic not in result.errors[method][condition.n_surfaces]:
+                    continue
+                ours = result.value(method, condition.n_surfaces, statistic)
+                if statistic in RGB_VALUED:
+                    ours *= thesis.THESIS_RGB_SCALE
+                reference = targets[method][column]
+                rows.append(
+                    {
+                        "method": method,
+                        "column": column,
+                        "ours": ours,
+                        "thesis": reference,
+                        "relative_difference": ours / reference - 1.0,
+                        "ok_fraction": result.ok_fraction(method, condition.n_surfaces),
+                    }
+                )
+    order = {m: i for i, m in enumerate(methods)}
+    rows.sort(key=lambda r: order[r["method"]])
+    return Reproduction(table=table, rows=rows)
+
+
+def _is_registered(label: str) -> bool:
+    try:
+        registry.lookup(label)
+        return True
+    except ValueError:
+        return False

@@ -1,0 +1,253 @@
+"""The ``ccjax`` command line.
+
+Each sub-command is a pair: ``_add_<name>(subparsers)`` declaring its arguments and a ``_run_<name>``
+function; :data:`_COMMANDS` lists them in the order ``ccjax --help`` shows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+
+def _world_arguments(parser: argparse.ArgumentParser, default: str = "default") -> None:
+    parser.add_argument("--world", choices=["default", "barnard1999"], default=default, help="synthetic world (default: %(default)s)")
+    parser.add_argument("--camera", default=None, help="camera name for the default world (see `ccjax cameras`)")
+    parser.add_argument("--data-dir", default=None, help="external data directory (else $CCJAX_DATA, else ../shared/data)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the illuminant sets and scenes")
+
+
+def _build_world(args):
+    from ccjax.world import World
+
+    if args.world == "barnard1999":
+        if args.camera:
+            raise SystemExit("--camera applies to --world default only (barnard1999 is the Sony DXC-930 world)")
+        return World.barnard1999(args.data_dir, seed=args.seed)
+    return World.default(args.camera or "Canon EOS 5D Mark II", seed=args.seed)
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        values = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError("empty list")
+    return values
+
+
+def _label_list(text: str) -> list[str]:
+    return [part.strip() for part in text.split(",") if part.strip()]
+
+
+def _write(path: str, text: str) -> None:
+    if path == "-":
+        sys.stdout.write(text + ("\n" if not text.endswith("\n") else ""))
+    else:
+        with open(path, "w") as f:
+            f.write(text)
+        print(f"wrote {path}", file=sys.stderr)
+
+
+# ---------------------------------------------------------------------------------------------
+# compare
+
+DEFAULT_COMPARE_METHODS = [
+    "NOTHING", "AVE-ILLUM", "GW", "DB-GW", "RETINEX", "shades-of-grey-p6",
+    "ECRULE-MV", "ECRULE-SCWIA-12", "C-by-C-MMSE", "RGB-C-by-C-MMSE",
+]
+
+
+def _add_compare(sub) -> None:
+    p = sub.add_parser("compare", help="run a synthetic comparison sweep (the main job)", description="Run every method on the same synthetic scenes for each number of surfaces; print RMS (r,g) and angular errors.")
+    _world_arguments(p)
+    p.add_argument("--methods", type=_label_list, default=None, help="comma-separated labels (default: the built-in comparison set)")
+    p.add_argument("--surfaces", type=_int_list, default=[4, 8, 16, 32, 64], help="comma-separated surface counts (default: 4,8,16,32,64)")
+    p.add_argument("--scenes", type=int, default=1000, help="scenes per surface count (default: %(default)s)")
+    p.add_argument("--specular", action="store_true", help="add the thesis' specularities (25 %% of surfaces, +U(0,2) x white)")
+    p.add_argument("--clip", type=float, default=None, help="discard surfaces with a channel above this level, thesis units (white = 255)")
+    p.add_argument("--plot", default=None, help="write a PNG of error versus number of surfaces")
+    p.add_argument("--json", default=None, help="write the tidy table as JSON ('-' for stdout)")
+    p.add_argument("--csv", default=None, help="write the tidy table as CSV ('-' for stdout)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.set_defaults(func=_run_compare)
+
+
+def _run_compare(args) -> int:
+    import jax
+
+    from ccjax import experiments
+
+    start = time.perf_counter()
+    world = _build_world(args)
+    methods = args.methods or [m for m in DEFAULT_COMPARE_METHODS if experiments._is_registered(m)]
+    result = experiments.sweep(
+        world, methods, args.surfaces, args.scenes, jax.random.key(args.seed),
+        specular=args.specular or None, clip=None if args.clip is None else args.clip / 255.0,
+        progress=not args.no_progress,
+    )
+    print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes")
+    print(result.table("rg"))
+    print()
+    print(result.table("angular"))
+    if args.plot:
+        experiments.plot(result, args.plot, title=f"{world.name}: {args.scenes} scenes per point")
+        print(f"wrote {args.plot}", file=sys.stderr)
+    if args.json:
+        _write(args.json, result.to_json(("rms", "mean", "median", "trimean", "best25", "worst25", "max")))
+    if args.csv:
+        _write(args.csv, result.to_csv(("rms", "mean", "median", "trimean", "best25", "worst25", "max")))
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+# reproduce
+
+
+def _add_reproduce(sub) -> None:
+    p = sub.add_parser("reproduce", help="reproduce a thesis table on the thesis world", description="Run a table of Barnard (1999) with the thesis protocol on World.barnard1999 and print ours, the thesis value and the relative difference per cell.")
+    p.add_argument("table", help="table id, e.g. 4.2, 4.3, 4.4")
+    p.add_argument("--methods", type=_label_list, default=None, help="comma-separated labels (default: every registered row)")
+    p.add_argument("--scenes", type=int, default=1000, help="scenes per condition (default: %(default)s)")
+    p.add_argument("--data-dir", default=None, help="external data directory (else $CCJAX_DATA, else ../shared/data)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_run_reproduce)
+
+
+def _run_reproduce(args) -> int:
+    import jax
+
+    from ccjax import experiments
+    from ccjax.world import World
+
+    world = World.barnard1999(args.data_dir, seed=args.seed)
+    result = experiments.reproduce(args.table, world, args.methods, args.scenes, jax.random.key(args.seed), progress=not args.no_progress)
+    print(result.to_json() if args.json else result.text())
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+# world
+
+
+def _add_world(sub) -> None:
+    p = sub.add_parser("world", help="describe a synthetic world and plot its chromaticities")
+    _world_arguments(p)
+    p.add_argument("--plot", default=None, help="write a PNG of the illuminant sets and reflectances in (r,g) (thesis Fig. 4.1)")
+    p.set_defaults(func=_run_world)
+
+
+def _run_world(args) -> int:
+    import numpy as np
+
+    from ccjax import data
+    from ccjax.metrics import angular_error
+
+    world = _build_world(args)
+    print(f"world: {world.name}")
+    for name, size in world.sizes().items():
+        print(f"  {name:<22}{size}")
+    print(f"  camera                {world.camera.name}")
+    print(f"  canonical white RGB   {np.round(np.asarray(world.canonical_white), 4).tolist()}")
+    if args.world == "barnard1999":
+        # Check the camera against the SFU-321 ground truth: white under each lab light.
+        truth = data.sfu321_groundtruth(args.data_dir)
+        lights = data.sfu_illuminants(args.data_dir)
+        print("  perfect white under each lab light vs mean SFU-321 ground truth (degrees):")
+        for code, name in data.SFU_LAB_LIGHTS.items():
+            rows = [i for i, label in enumerate(truth.labels) if label == code]
+            mean_truth = truth.rgb[rows].mean(axis=0)
+            white = np.asarray(world.camera.response(lights.values[lights.names.index(name)]))
+            print(f"    {code:<18}{float(angular_error(white, mean_truth)):6.2f}   ({len(rows)} images)")
+    if args.plot:
+        _plot_world(world, args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    return 0
+
+
+def _plot_world(world, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from ccjax.spectra import chromaticity
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), sharex=True, sharey=True)
+    panels = [
+        ("training illuminants", np.asarray(world.train_whites), 12),
+        ("test illuminants", np.asarray(world.test_whites), 6),
+        ("reflectances under the canonical light", np.asarray(world.canonical_rgb), 2),
+    ]
+    for ax, (title, rgb, size) in zip(axes, panels):
+        rg = chromaticity(rgb)
+        ax.scatter(rg[:, 0], rg[:, 1], s=size, alpha=0.7)
+        canon = chromaticity(np.asarray(world.canonical_white))
+        ax.scatter([canon[0]], [canon[1]], marker="*", s=120, c="red", label="canonical")
+        ax.set_title(f"{title} ({len(rgb)})")
+        ax.set_xlabel("r")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("g")
+    axes[0].legend()
+    fig.suptitle(f"{world.name}: (r,g) chromaticities")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# cameras / methods
+
+
+def _add_cameras(sub) -> None:
+    p = sub.add_parser("cameras", help="list the cameras ccjax can build")
+    p.add_argument("--data-dir", default=None)
+    p.set_defaults(func=lambda args: _print_cameras(args.data_dir))
+
+
+def _print_cameras(data_dir) -> int:
+    from ccjax.camera import cameras
+
+    for name, source in cameras(data_dir).items():
+        print(f"{name:<36}{source}")
+    return 0
+
+
+def _add_methods(sub) -> None:
+    p = sub.add_parser("methods", help="list the estimator labels")
+    p.set_defaults(func=lambda args: _print_methods())
+
+
+def _print_methods() -> int:
+    from ccjax.estimators import available
+
+    for example, description in available():
+        print(f"{example:<28}{description}")
+    return 0
+
+
+_COMMANDS = [_add_compare, _add_reproduce, _add_world, _add_cameras, _add_methods]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="ccjax", description="JAX colour constancy: estimate and correct the colour of the light.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in _COMMANDS:
+        add(sub)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError) as error:
+        print(f"ccjax {args.command}: error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
