@@ -36,9 +36,6 @@ def estimate(method, rgb, mask=None, *, world: World | None = None) -> Estimate:
     Returns:
         An :class:`Estimate` (``illuminant`` RGB of white, ``ok``), batched like ``rgb``.
     """
-    import equinox as eqx
-    import jax
-
     from ccjax.estimators.base import validate_scene
 
     rgb, mask = validate_scene(rgb, mask)
@@ -48,8 +45,18 @@ def estimate(method, rgb, mask=None, *, world: World | None = None) -> Estimate:
         model = method
     else:
         raise ValueError(f"method: expected a label or an Estimator, got {type(method).__name__}")
-    run = eqx.filter_jit(jax.vmap(model) if rgb.ndim == 3 else model)
-    return run(rgb, mask)
+    return _run(model, rgb, mask)
+
+
+def _run(model, rgb, mask):
+    import equinox as eqx
+    import jax
+
+    @eqx.filter_jit
+    def run(model, rgb, mask):
+        return jax.vmap(model)(rgb, mask) if rgb.ndim == 3 else model(rgb, mask)
+
+    return run(model, rgb, mask)
 
 
 __all__ = [

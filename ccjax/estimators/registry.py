@@ -8,7 +8,8 @@ import re
 from dataclasses import dataclass
 from typing import Callable
 
-from ccjax.estimators import simple
+import importlib
+
 from ccjax.estimators.base import Estimator
 from ccjax.world import World
 
@@ -23,6 +24,31 @@ class Entry:
 
 _ENTRIES: list[Entry] = []
 
+# Family modules register their labels when imported; they are imported on first look-up so that
+# importing ccjax stays cheap and a family's module is the one place its labels are declared.
+FAMILIES = (
+    "ccjax.estimators.simple",
+    "ccjax.estimators.gamut",
+    "ccjax.estimators.cip",
+    "ccjax.estimators.correlation",
+    "ccjax.estimators.neural",
+    "ccjax.estimators.spatial",
+)
+_loaded = False
+
+
+def _load_families() -> None:
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for name in FAMILIES:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as error:
+            if error.name != name:  # a family that exists but fails to import is a real error
+                raise
+
 
 def register(pattern: str, example: str, description: str):
     """Decorator: register ``build(world, match, **options) -> Estimator`` for labels matching
@@ -36,6 +62,7 @@ def register(pattern: str, example: str, description: str):
 
 
 def lookup(label: str) -> tuple[Entry, re.Match]:
+    _load_families()
     for entry in _ENTRIES:
         match = entry.pattern.fullmatch(label)
         if match:
@@ -58,23 +85,6 @@ def fit(label: str, world: World, **options) -> Estimator:
 
 def available() -> list[tuple[str, str]]:
     """``(example label, description)`` for every registered family."""
+    _load_families()
     return [(entry.example, entry.description) for entry in _ENTRIES]
 
-
-register(r"NOTHING", "NOTHING", "assume the canonical light (§4.5)")(lambda w, m, **o: simple.fit_nothing(w, **o))
-register(r"AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)")(
-    lambda w, m, **o: simple.fit_ave_illum(w, **o)
-)
-register(r"GW", "GW", "grey world, 2 x mean RGB (§4.5.1)")(lambda w, m, **o: simple.fit_gw(w, **o))
-register(r"DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)")(
-    lambda w, m, **o: simple.fit_db_gw(w, **o)
-)
-register(r"RETINEX|MAX-RGB|max-rgb", "RETINEX", "per-channel maximum (§4.5.2)")(
-    lambda w, m, **o: simple.fit_retinex(w, **o)
-)
-register(
-    r"soft-RETINEX-t(?P<t>\d+(\.\d+)?(e-?\d+)?)", "soft-RETINEX-t0.01", "soft maximum with temperature t (differentiable)"
-)(lambda w, m, **o: simple.fit_retinex(w, temperature=float(m["t"]), **o))
-register(r"shades-of-grey-p(?P<p>\d+(\.\d+)?)", "shades-of-grey-p6", "Minkowski p-norm grey world (Finlayson & Trezzi)")(
-    lambda w, m, **o: simple.fit_shades_of_grey(w, p=float(m["p"]), **o)
-)

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
+from ccjax.estimators.registry import register
 from ccjax.world import World
 
 
@@ -123,3 +124,25 @@ def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
     if not p >= 1:
         raise ValueError(f"p: expected a Minkowski norm >= 1, got {p!r}")
     return ShadesOfGrey(p=float(p), fallback=average_illuminant(world))
+
+
+# ---------------------------------------------------------------------------------------------
+# labels
+
+register(r"NOTHING", "NOTHING", "assume the canonical light (§4.5)")(lambda w, m, **o: fit_nothing(w, **o))
+register(r"AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)")(
+    lambda w, m, **o: fit_ave_illum(w, **o)
+)
+register(r"GW", "GW", "grey world, 2 x mean RGB (§4.5.1)")(lambda w, m, **o: fit_gw(w, **o))
+register(r"DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)")(
+    lambda w, m, **o: fit_db_gw(w, **o)
+)
+register(r"RETINEX|MAX-RGB|max-rgb", "RETINEX", "per-channel maximum (§4.5.2)")(
+    lambda w, m, **o: fit_retinex(w, **o)
+)
+register(
+    r"soft-RETINEX-t(?P<t>\d+(\.\d+)?(e-?\d+)?)", "soft-RETINEX-t0.01", "soft maximum with temperature t (differentiable)"
+)(lambda w, m, **o: fit_retinex(w, temperature=float(m["t"]), **o))
+register(r"shades-of-grey-p(?P<p>\d+(\.\d+)?)", "shades-of-grey-p6", "Minkowski p-norm grey world (Finlayson & Trezzi)")(
+    lambda w, m, **o: fit_shades_of_grey(w, p=float(m["p"]), **o)
+)
