@@ -48,7 +48,8 @@ def estimate(method, rgb, mask=None, *, world: World | None = None) -> Estimate:
     return _run(model, rgb, mask)
 
 
-def _run(model, rgb, mask):
+@functools.cache
+def _compiled_runner():
     import equinox as eqx
     import jax
 
@@ -56,7 +57,11 @@ def _run(model, rgb, mask):
     def run(model, rgb, mask):
         return jax.vmap(model)(rgb, mask) if rgb.ndim == 3 else model(rgb, mask)
 
-    return run(model, rgb, mask)
+    return run
+
+
+def _run(model, rgb, mask):
+    return _compiled_runner()(model, rgb, mask)
 
 
 __all__ = [
