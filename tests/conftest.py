@@ -1,0 +1,32 @@
+"""Shared fixtures. External-data tests skip when ../shared/data is missing, except under CI=true,
+where a missing data directory is a failure (DESIGN.md §8)."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from ccjax import data
+from ccjax.world import World
+
+
+def require_external_data() -> None:
+    """Skip (or fail under CI=true) when the external data directory cannot be found."""
+    try:
+        data.find_data_file("sfu_barnard/sony_dxc930_380-780-4nm.csv")
+    except data.DataNotFoundError as error:
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(f"external data missing under CI: {error}")
+        pytest.skip(str(error))
+
+
+@pytest.fixture(scope="session")
+def barnard_world() -> World:
+    require_external_data()
+    return World.barnard1999()
+
+
+@pytest.fixture(scope="session")
+def default_world() -> World:
+    return World.default()
