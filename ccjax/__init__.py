@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 
+from ccjax import metrics
 from ccjax.camera import Camera, cameras
 from ccjax.estimators import Estimate, Estimator, fit
 from ccjax.scenes import Scenes, ShotNoise, Specular, sample
@@ -74,6 +75,7 @@ __all__ = [
     "Specular",
     "World",
     "cameras",
+    "metrics",
     "estimate",
     "fit",
     "sample",

@@ -1,0 +1,99 @@
+"""Synthetic scenes: sampling, specular recipe, clipping, noise, reproducibility."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from ccjax import scenes
+from ccjax.scenes import SceneTables, ShotNoise, Specular, sample, sample_batch, scene_keys
+
+
+@pytest.mark.parametrize("n_surfaces", [1, 8, 64, 65, 1024, 1993])
+def test_draws_are_distinct_and_in_range(n_surfaces):
+    keys = scene_keys(jax.random.key(0), 0, 20)
+    draws = np.asarray(jax.vmap(lambda k: scenes._draw_without_replacement(k, 1993, n_surfaces))(keys))
+    assert draws.min() >= 0 and draws.max() < 1993
+    assert all(len(set(row)) == n_surfaces for row in draws.tolist())
+
+
+@pytest.mark.parametrize("n_surfaces", [8, 200])
+def test_rgb_is_physical(default_world, n_surfaces):
+    batch = sample(jax.random.key(0), default_world, 50, n_surfaces)
+    # rgb = reflectance x light: white under the scene light bounds each channel (reflectance <= 1).
+    assert np.all(np.asarray(batch.rgb) <= np.asarray(batch.illuminant)[:, None, :] * 1.0001)
+    assert np.all(np.asarray(batch.mask))
+
+
+def test_floyd_sampler_is_uniform():
+    keys = scene_keys(jax.random.key(3), 0, 20000)
+    draws = jax.vmap(lambda k: scenes._draw_without_replacement(k, 10, 4))(keys)
+    counts = np.bincount(np.asarray(draws).ravel(), minlength=10)
+    expected = 20000 * 4 / 10
+    assert np.all(np.abs(counts - expected) < 5 * np.sqrt(expected))
+    assert all(len(set(row)) == 4 for row in np.asarray(draws)[:500].tolist())
+
+
+def test_scene_rgb_matches_spectral_product(default_world):
+    """One scene recomputed from spectra with NumPy (reflectance x illuminant @ sensors)."""
+    batch = sample(jax.random.key(5), default_world, 3, 6)
+    refl = np.asarray(default_world.reflectances, dtype=np.float64)
+    lights = np.asarray(default_world.test_illuminants, dtype=np.float64)
+    sensors = np.asarray(default_world.camera.sensors, dtype=np.float64)
+    canon = refl @ (np.asarray(default_world.canonical, dtype=np.float64)[:, None] * sensors)
+    whites = lights @ sensors
+    for b in range(3):
+        light = int(np.argmin(np.abs(whites - np.asarray(batch.illuminant[b])).sum(axis=1)))
+        for p in range(6):
+            s = int(np.argmin(np.abs(canon - np.asarray(batch.canonical_rgb[b, p])).sum(axis=1)))
+            want = (refl[s] * lights[light]) @ sensors
+            np.testing.assert_allclose(np.asarray(batch.rgb[b, p]), want, rtol=2e-4, atol=1e-6)
+
+
+def test_specular_recipe(default_world):
+    matte = sample(jax.random.key(9), default_world, 4000, 8)
+    spec = sample(jax.random.key(9), default_world, 4000, 8, specular=True)
+    # Same key -> same surfaces and lights; the difference is amount x white with amount ~ U(0,2) w.p. 0.25.
+    diff = np.asarray(spec.rgb - matte.rgb)
+    white = np.asarray(spec.illuminant)[:, None, :]
+    amount = (diff / white)[..., 1]
+    np.testing.assert_allclose(diff, amount[..., None] * white, atol=1e-5)
+    specular = amount > 1e-6
+    assert abs(specular.mean() - 0.25) < 0.01
+    assert abs(amount[specular].mean() - 1.0) < 0.03 and amount.max() <= 2.0
+
+
+def test_clip_masks_surfaces_above_the_level(default_world):
+    batch = sample(jax.random.key(1), default_world, 500, 8, specular=True, clip=300 / 255)
+    rgb, mask = np.asarray(batch.rgb), np.asarray(batch.mask)
+    np.testing.assert_array_equal(mask, np.all(rgb <= 300 / 255, axis=-1))
+    assert 0 < (~mask).mean() < 0.3
+
+
+def test_noise_statistics(default_world):
+    clean = sample(jax.random.key(2), default_world, 2000, 16)
+    noise = ShotNoise(a=1e-3, b=1e-6)
+    noisy = sample(jax.random.key(2), default_world, 2000, 16, noise=noise)
+    rho = np.asarray(clean.rgb)
+    z = (np.asarray(noisy.rgb) - rho) / np.sqrt(noise.a * rho + noise.b)
+    bright = rho > 0.05  # away from the clamp at zero
+    assert abs(z[bright].mean()) < 0.02 and abs(z[bright].std() - 1) < 0.02
+
+
+def test_chunking_does_not_change_scenes(default_world):
+    tables = SceneTables.from_world(default_world)
+    key = jax.random.key(11)
+    whole = sample_batch(scene_keys(key, 0, 10), tables, 8)
+    part = sample_batch(scene_keys(key, 6, 4), tables, 8)
+    np.testing.assert_array_equal(np.asarray(whole.rgb[6:]), np.asarray(part.rgb))
+
+
+def test_bad_arguments(default_world):
+    with pytest.raises(ValueError, match="n_surfaces"):
+        sample(jax.random.key(0), default_world, 2, 5000)
+    with pytest.raises(ValueError, match="n_scenes"):
+        sample(jax.random.key(0), default_world, 0, 8)
+    with pytest.raises(ValueError, match="clip"):
+        sample(jax.random.key(0), default_world, 2, 8, clip=-1.0)
+    with pytest.raises(ValueError, match="specular"):
+        sample(jax.random.key(0), default_world, 2, 8, specular=Specular(probability=2.0))

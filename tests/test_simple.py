@@ -1,0 +1,165 @@
+"""Simple estimators: against the NumPy reference, properties (hypothesis), gradients, validation."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from jax.test_util import check_grads
+
+import ccjax
+from ccjax.estimators import registry
+from ccjax.estimators.simple import average_illuminant
+import reference
+
+LABELS = ["GW", "DB-GW", "RETINEX", "shades-of-grey-p6", "shades-of-grey-p1", "NOTHING", "AVE-ILLUM"]
+P = 16  # one padded shape for every property example, so XLA compiles once per method
+
+
+@pytest.fixture(scope="module")
+def models(default_world):
+    return {label: registry.fit(label, default_world) for label in LABELS}
+
+
+@pytest.fixture(scope="module")
+def run():
+    return jax.jit(lambda model, rgb, mask: model(rgb, mask))
+
+
+def test_match_reference(models, run, default_world):
+    rng = np.random.default_rng(0)
+    w_c = np.asarray(default_world.canonical_white, dtype=np.float64)
+    db_grey = np.asarray(default_world.canonical_rgb, dtype=np.float64).mean(axis=0)
+    for _ in range(10):
+        rgb = rng.uniform(0, 1, (P, 3))
+        mask = rng.uniform(size=P) < 0.6
+        mask[0] = True
+        got = {label: np.asarray(run(models[label], jnp.asarray(rgb, jnp.float32), jnp.asarray(mask)).illuminant) for label in LABELS}
+        np.testing.assert_allclose(got["GW"], reference.grey_world(rgb, mask, [2, 2, 2]), rtol=1e-5)
+        np.testing.assert_allclose(got["DB-GW"], reference.grey_world(rgb, mask, w_c / db_grey), rtol=1e-4)
+        np.testing.assert_allclose(got["RETINEX"], reference.max_rgb(rgb, mask), rtol=1e-6)
+        np.testing.assert_allclose(got["shades-of-grey-p6"], reference.shades_of_grey(rgb, mask, 6), rtol=1e-4)
+        np.testing.assert_allclose(got["shades-of-grey-p1"], got["GW"], rtol=1e-5)
+        np.testing.assert_allclose(got["NOTHING"], w_c, rtol=1e-6)
+        np.testing.assert_allclose(got["AVE-ILLUM"], np.asarray(default_world.train_whites).mean(axis=0), rtol=1e-5)
+
+
+scene = st.integers(1, P).flatmap(
+    lambda n: st.tuples(
+        st.lists(st.tuples(*[st.floats(0.0, 1.0, width=32)] * 3), min_size=n, max_size=n),
+        st.randoms(use_true_random=False),
+    )
+)
+
+
+def _pad(points):
+    rgb = np.zeros((P, 3), np.float32)
+    mask = np.zeros(P, bool)
+    rgb[: len(points)] = points
+    mask[: len(points)] = True
+    return rgb, mask
+
+
+@settings(max_examples=40, deadline=None)
+@given(scene)
+def test_permutation_and_padding_invariance(models, run, data):
+    points, rnd = data
+    rgb, mask = _pad(points)
+    order = list(range(P))
+    rnd.shuffle(order)
+    garbage = rgb.copy()
+    garbage[~mask] = 0.77  # values behind the mask must not matter
+    for label in ["GW", "DB-GW", "RETINEX", "shades-of-grey-p6"]:
+        base = run(models[label], rgb, mask)
+        permuted = run(models[label], rgb[order], mask[order])
+        padded = run(models[label], garbage, mask)
+        np.testing.assert_allclose(permuted.illuminant, base.illuminant, rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(padded.illuminant, base.illuminant, rtol=1e-5, atol=1e-7)
+        assert np.all(np.isfinite(base.illuminant))
+
+
+@settings(max_examples=25, deadline=None)
+@given(scene, st.floats(0.01, 100.0))
+def test_scale_equivariance(models, run, data, scale):
+    points, _ = data
+    rgb, mask = _pad(points)
+    if rgb[mask].sum() <= 1e-6:
+        return
+    for label in ["GW", "RETINEX", "DB-GW", "shades-of-grey-p6"]:
+        base = run(models[label], rgb, mask).illuminant
+        scaled = run(models[label], rgb * np.float32(scale), mask).illuminant
+        np.testing.assert_allclose(scaled, np.asarray(base) * scale, rtol=2e-4, atol=1e-6)
+
+
+def test_degenerate_scenes_give_finite_fallback(models, run, default_world):
+    fallback = np.asarray(average_illuminant(default_world))
+    cases = {
+        "all masked": (np.random.default_rng(0).uniform(size=(P, 3)).astype(np.float32), np.zeros(P, bool)),
+        "all zero": (np.zeros((P, 3), np.float32), np.ones(P, bool)),
+    }
+    for name, (rgb, mask) in cases.items():
+        for label in ["GW", "DB-GW", "RETINEX", "shades-of-grey-p6"]:
+            est = run(models[label], rgb, mask)
+            assert np.all(np.isfinite(est.illuminant)), (name, label)
+            assert not bool(est.ok), (name, label)
+            np.testing.assert_allclose(est.illuminant, fallback, rtol=1e-6)
+    single = np.zeros((P, 3), np.float32)
+    single[0] = [0.2, 0.5, 0.3]
+    mask = np.zeros(P, bool)
+    mask[0] = True
+    for label in ["GW", "RETINEX", "shades-of-grey-p6"]:
+        est = run(models[label], single, mask)
+        assert bool(est.ok)
+        np.testing.assert_allclose(np.asarray(est.illuminant) / np.sum(est.illuminant), [0.2, 0.5, 0.3], rtol=1e-5)
+
+
+def test_gradients_match_finite_differences(default_world):
+    with jax.enable_x64(True):
+        rng = np.random.default_rng(3)
+        rgb = jnp.asarray(rng.uniform(0.1, 1.0, (6, 3)))
+        mask = jnp.array([True] * 5 + [False])
+        truth = jnp.array([0.5, 0.8, 1.0])
+        for label in ["GW", "shades-of-grey-p6", "soft-RETINEX-t0.05"]:
+            model = registry.fit(label, default_world)
+            model = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64) if isinstance(x, jax.Array) else x, model)
+            loss = lambda x: ccjax.metrics.angular_error(model(x, mask).illuminant, truth)  # noqa: E731
+            check_grads(loss, (rgb,), order=1, modes=["rev"], atol=1e-4, rtol=1e-4)
+            assert float(jnp.linalg.norm(jax.grad(loss)(rgb))) > 0
+
+
+def test_soft_retinex_approaches_hard(default_world):
+    rng = np.random.default_rng(4)
+    rgb = jnp.asarray(rng.uniform(0, 1, (P, 3)), jnp.float32)
+    mask = jnp.ones(P, bool)
+    hard = registry.fit("RETINEX", default_world)(rgb, mask).illuminant
+    soft = registry.fit("soft-RETINEX-t0.001", default_world)(rgb, mask).illuminant
+    np.testing.assert_allclose(soft, hard, atol=0.001 * np.log(P) + 1e-5)
+
+
+def test_estimate_validates_input():
+    good = np.random.default_rng(0).uniform(size=(8, 3))
+    with pytest.raises(ValueError, match="rgb: contains NaN"):
+        ccjax.estimate("GW", np.full((8, 3), np.nan))
+    with pytest.raises(ValueError, match="rgb: contains negative"):
+        ccjax.estimate("GW", -good)
+    with pytest.raises(ValueError, match=r"rgb: expected shape"):
+        ccjax.estimate("GW", np.ones((8, 4)))
+    with pytest.raises(ValueError, match="rgb: expected a real numeric"):
+        ccjax.estimate("GW", np.array([["a", "b", "c"]]))
+    with pytest.raises(ValueError, match="mask: expected shape"):
+        ccjax.estimate("GW", good, np.ones(7, bool))
+    with pytest.raises(ValueError, match="mask: expected a boolean"):
+        ccjax.estimate("GW", good, np.ones(8))
+    with pytest.raises(ValueError, match="method: unknown label"):
+        ccjax.estimate("NO-SUCH-METHOD", good)
+    with pytest.raises(ValueError, match="p: expected"):
+        ccjax.estimate("shades-of-grey-p0.5", good)
+
+
+def test_estimate_batches(default_world):
+    rgb = np.random.default_rng(1).uniform(size=(4, 8, 3))
+    batch = ccjax.estimate("GW", rgb, world=default_world)
+    one = ccjax.estimate("GW", rgb[2], world=default_world)
+    assert batch.illuminant.shape == (4, 3)
+    np.testing.assert_allclose(batch.illuminant[2], one.illuminant, rtol=1e-6)
