@@ -1,0 +1,123 @@
+"""Sweep engine, reproduction of the thesis tables, sharding, CLI."""
+
+import json
+import os
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+
+from ccjax import cli, experiments
+from ccjax.experiments import reproduce, sweep
+
+SIMPLE = ["NOTHING", "AVE-ILLUM", "GW", "DB-GW", "RETINEX"]
+
+
+def test_sweep_is_independent_of_chunk_size(default_world):
+    a = sweep(default_world, ["GW", "RETINEX"], [8], 300, jax.random.key(1), chunk_size=64, progress=False)
+    b = sweep(default_world, ["GW", "RETINEX"], [8], 300, jax.random.key(1), chunk_size=300, progress=False)
+    for method in ("GW", "RETINEX"):
+        for stat in ("rg", "angular", "rgb", "map_rgb"):
+            # Same scenes; only float32 rounding of differently shaped batches may differ.
+            np.testing.assert_allclose(a.errors[method][8][stat], b.errors[method][8][stat], rtol=1e-4, atol=1e-6)
+    assert len(a.errors["GW"][8]["rg"]) == 300
+
+
+def test_sweep_rows_and_outputs(default_world, tmp_path):
+    result = sweep(default_world, ["NOTHING", "GW"], [4, 8], 100, progress=False)
+    rows = result.rows(("rms", "median"))
+    # NOTHING is a chromaticity method: no RGB-valued statistics.
+    assert {r["statistic"] for r in rows if r["method"] == "NOTHING"} == {"angular", "rg", "map_rg"}
+    assert {r["statistic"] for r in rows if r["method"] == "GW"} == set(experiments.STATISTICS)
+    gw_rms = [r for r in rows if r["method"] == "GW" and r["surfaces"] == 8 and r["statistic"] == "rg" and r["summary"] == "rms"][0]
+    assert gw_rms["value"] == pytest.approx(float(np.sqrt(np.mean(result.errors["GW"][8]["rg"] ** 2))))
+    assert json.loads(result.to_json())["rows"][0]["method"] == "NOTHING"
+    assert result.to_csv().splitlines()[0].startswith("method,surfaces,statistic")
+    experiments.plot(result, tmp_path / "plot.png")
+    assert (tmp_path / "plot.png").stat().st_size > 10_000
+
+
+def test_more_surfaces_help_grey_world(default_world):
+    result = sweep(default_world, ["GW", "DB-GW"], [4, 64], 400, progress=False)
+    for method in ("GW", "DB-GW"):
+        assert result.value(method, 64, "rg") < 0.7 * result.value(method, 4, "rg")
+
+
+def test_reproduce_table_4_2_simple_rows(barnard_world):
+    """Thesis Table 4.2: angular and (r,g) within 10 %, RGB-valued columns within 15 %."""
+    result = reproduce("4.2", barnard_world, SIMPLE, 1000, jax.random.key(0), progress=False)
+    assert len(result.rows) == 3 + 3 + 6 * 3
+    for row in result.rows:
+        limit = 0.10 if row["column"] in ("angular", "rg") else 0.15
+        assert abs(row["relative_difference"]) <= limit, row
+
+
+def test_reproduce_table_4_3_simple_rows(barnard_world):
+    result = reproduce("4.3", barnard_world, SIMPLE, 1000, jax.random.key(0), progress=False)
+    for row in result.rows:
+        assert abs(row["relative_difference"]) <= 0.15, row
+
+
+def test_reproduce_rejects_unknown(barnard_world):
+    with pytest.raises(ValueError, match="table"):
+        reproduce("9.9", barnard_world)
+    with pytest.raises(ValueError, match="methods"):
+        reproduce("4.2", barnard_world, ["GREY-WORLD-X"])
+
+
+SHARDING_SCRIPT = r"""
+import os, sys, json
+import jax, numpy as np
+from jax.sharding import Mesh
+from ccjax.world import World
+from ccjax.experiments import sweep
+assert len(jax.devices()) == 4, jax.devices()
+world = World.default()
+mesh = Mesh(np.array(jax.devices()), ("scenes",))
+one = sweep(world, ["GW", "RETINEX", "shades-of-grey-p6"], [8, 64], 1000, jax.random.key(7), progress=False)
+four = sweep(world, ["GW", "RETINEX", "shades-of-grey-p6"], [8, 64], 1000, jax.random.key(7), mesh=mesh, progress=False)
+worst = 0.0
+for m in one.methods:
+    for n in one.surfaces:
+        for s, v in one.errors[m][n].items():
+            if s == "ok":
+                assert (v == four.errors[m][n][s]).all()
+                continue
+            a, b = one.value(m, n, s), four.value(m, n, s)
+            worst = max(worst, abs(a - b) / max(abs(a), 1e-12))
+print(json.dumps({"worst": worst}))
+"""
+
+
+def test_sharded_sweep_matches_single_device():
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
+    out = subprocess.run([sys.executable, "-c", SHARDING_SCRIPT], env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    worst = json.loads(out.stdout.strip().splitlines()[-1])["worst"]
+    assert worst <= 1e-6
+
+
+def test_cli_compare_writes_outputs(tmp_path, capsys):
+    code = cli.main(["compare", "--methods", "GW,RETINEX", "--surfaces", "4,8", "--scenes", "50", "--no-progress",
+                     "--plot", str(tmp_path / "c.png"), "--json", str(tmp_path / "c.json"), "--csv", str(tmp_path / "c.csv")])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "GW" in printed and "RETINEX" in printed and "rg (rms)" in printed
+    assert (tmp_path / "c.png").exists()
+    assert {r["method"] for r in json.loads((tmp_path / "c.json").read_text())["rows"]} == {"GW", "RETINEX"}
+
+
+def test_cli_errors_are_clear(capsys):
+    assert cli.main(["compare", "--methods", "NO-SUCH", "--scenes", "5", "--no-progress"]) == 2
+    assert "unknown label 'NO-SUCH'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["compare", "--surfaces", "a,b"])
+
+
+def test_cli_reproduce_json(barnard_world, capsys):
+    assert cli.main(["reproduce", "4.2", "--methods", "GW", "--scenes", "200", "--json", "--no-progress"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["table"] == "4.2" and {r["column"] for r in payload["rows"]} == set(experiments.STATISTICS)
+    assert all(set(r) >= {"method", "column", "ours", "thesis"} for r in payload["rows"])
