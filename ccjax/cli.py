@@ -57,8 +57,15 @@ def _write(path: str, text: str) -> None:
 
 DEFAULT_COMPARE_METHODS = [
     "NOTHING", "AVE-ILLUM", "GW", "DB-GW", "RETINEX", "shades-of-grey-p6",
-    "ECRULE-MV", "ECRULE-SCWIA-12", "C-by-C-MMSE", "RGB-C-by-C-MMSE",
+    "ECRULE-MV", "ECRULE-SCWIA-12", "C-by-C-MMSE", "RGB-C-by-C-MMSE", "NEURAL-NET",
 ]
+
+
+def _weights_ready(label: str, world) -> bool:
+    """Learned methods join default runs only when their weights are cached (never train silently)."""
+    from ccjax.estimators import neural
+
+    return not neural.is_net_label(label) or neural.has_weights(world, label)
 
 
 def _add_compare(sub) -> None:
@@ -83,7 +90,7 @@ def _run_compare(args) -> int:
 
     start = time.perf_counter()
     world = _build_world(args)
-    methods = args.methods or [m for m in DEFAULT_COMPARE_METHODS if experiments._is_registered(m)]
+    methods = args.methods or [m for m in DEFAULT_COMPARE_METHODS if experiments._is_registered(m) and _weights_ready(m, world)]
     result = experiments.sweep(
         world, methods, args.surfaces, args.scenes, jax.random.key(args.seed),
         specular=args.specular or None, clip=None if args.clip is None else args.clip / 255.0,
@@ -123,11 +130,14 @@ def _add_reproduce(sub) -> None:
 def _run_reproduce(args) -> int:
     import jax
 
-    from ccjax import experiments
+    from ccjax import experiments, thesis
     from ccjax.world import World
 
     world = World.barnard1999(args.data_dir, seed=args.seed)
-    result = experiments.reproduce(args.table, world, args.methods, args.scenes, jax.random.key(args.seed), progress=not args.no_progress)
+    methods = args.methods
+    if methods is None and args.table in thesis.TABLES:
+        methods = [m for m in thesis.TABLES[args.table] if experiments._is_registered(m) and _weights_ready(m, world)]
+    result = experiments.reproduce(args.table, world, methods, args.scenes, jax.random.key(args.seed), progress=not args.no_progress)
     print(result.to_json() if args.json else result.text())
     return 0
 
@@ -396,7 +406,41 @@ def _run_evaluate(args) -> int:
     return 0
 
 
-_COMMANDS = [_add_compare, _add_reproduce, _add_world, _add_cameras, _add_methods, _add_estimate, _add_correct, _add_evaluate]
+# ---------------------------------------------------------------------------------------------
+# train-net
+
+
+def _add_train_net(sub) -> None:
+    p = sub.add_parser("train-net", help="train the neural-net estimator for a world and cache its weights", description="Train NEURAL-NET (or SP-NEURAL-NET with --specular) on synthetic scenes of the world's training illuminants (Barnard 1999 §4.5.5) and save the weights in the cache ($CCJAX_CACHE, else the user cache directory).")
+    _world_arguments(p)
+    p.add_argument("--specular", action="store_true", help="train SP-NEURAL-NET (specular training scenes) instead of NEURAL-NET")
+    p.add_argument("--steps", type=int, default=None, help="optimiser steps (default: 3000)")
+    p.add_argument("--batch-size", type=int, default=None, help="training scenes per step (default: 256)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.set_defaults(func=_run_train_net)
+
+
+def _run_train_net(args) -> int:
+    import dataclasses
+
+    from ccjax.estimators import neural
+
+    label = "SP-NEURAL-NET" if args.specular else "NEURAL-NET"
+    world = _build_world(args)
+    changes = {"seed": args.seed}
+    if args.steps is not None:
+        changes["steps"] = args.steps
+    if args.batch_size is not None:
+        changes["batch_size"] = args.batch_size
+    schedule = dataclasses.replace(neural.Schedule(), **changes)
+    print(f"training {label} for world {world.name}: {schedule.steps} steps x {schedule.batch_size} scenes", file=sys.stderr)
+    path, log = neural.train_and_save(world, label, schedule, progress=not args.no_progress)
+    print(f"{label}: final training RMS (r,g) error {log.losses[-1] ** 0.5:.4f}; trained in {log.seconds:.1f} s")
+    print(f"saved {path}")
+    return 0
+
+
+_COMMANDS = [_add_compare, _add_reproduce, _add_world, _add_cameras, _add_methods, _add_estimate, _add_correct, _add_evaluate, _add_train_net]
 
 
 def main(argv: list[str] | None = None) -> int:
