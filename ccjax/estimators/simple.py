@@ -7,6 +7,7 @@ scene has no usable data (spec ch02-04 §10 item 27).
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
@@ -42,8 +43,11 @@ class GreyWorld(Estimator):
     estimates_brightness = True
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
-        count = jnp.sum(mask)
-        mean = jnp.sum(jnp.where(mask[:, None], rgb, 0.0), axis=0) / jnp.maximum(count, 1)
+        # A mask-weighted dot product rather than a masked sum: XLA vectorises the dot far better
+        # over the short trailing RGB axis (several times faster on CPU).
+        weights = mask.astype(rgb.dtype)
+        count = jnp.sum(weights)
+        mean = (weights @ rgb) / jnp.maximum(count, 1.0)
         return with_fallback(mean * self.scale, count > 0, self.fallback)
 
 
@@ -54,16 +58,18 @@ class ShadesOfGrey(Estimator):
     tends to RETINEX's. The magnitude is only meaningful for ``p = 1``.
     """
 
-    p: float
+    p: float = eqx.field(static=True)  # static: an integer p compiles to multiplications
     fallback: Float[Array, "3"]
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
-        count = jnp.sum(mask)
+        weights = mask.astype(rgb.dtype)
+        count = jnp.sum(weights)
         # Normalise by the brightest value first so rho^p neither overflows nor underflows.
         peak = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
         safe_peak = jnp.where(peak > TINY, peak, 1.0)
-        powered = jnp.where(mask[:, None], rgb / safe_peak, 0.0) ** self.p
-        mean = jnp.sum(powered, axis=0) / jnp.maximum(count, 1)
+        # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
+        exponent = int(self.p) if float(self.p).is_integer() else self.p
+        mean = (weights @ (rgb / safe_peak) ** exponent) / jnp.maximum(count, 1.0)
         positive = mean > 0
         root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
         return with_fallback(2.0 * safe_peak * root, (count > 0) & (peak > TINY), self.fallback)
