@@ -41,6 +41,8 @@ from ccjax.world import World
 # SciPy's gaussian_filter truncates its kernels at 4 sigma; using the same taps makes the filter
 # bit-for-bit the textbook one that the reference implementation in tests/ uses.
 _TRUNCATE = 4.0
+# Relative size below which an edge response counts as zero (float32 rounding of a flat image).
+_FLAT = 1e-5
 
 
 def derivative_kernel(sigma: float, order: int) -> np.ndarray:
@@ -162,7 +164,9 @@ class GreyEdge(Estimator):
         response = edge_response(image, self.order, self.sigma)
         valid = valid_positions(mask, support_radius(self.order, self.sigma))
         estimate = minkowski_mean(response, valid, self.p)
-        usable = jnp.any(valid) & jnp.all(estimate > TINY)
+        # Edges of a flat image are rounding noise, not zero: demand edges above float precision.
+        floor = _FLAT * jax.lax.stop_gradient(jnp.max(jnp.abs(jnp.where(mask[..., None], image, 0.0))))
+        usable = jnp.any(valid) & jnp.all(estimate > jnp.maximum(floor, TINY))
         return with_fallback(estimate, usable, self.fallback)
 
 
