@@ -251,10 +251,11 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
         ax.set_xlabel("number of surfaces (log2 scale)")
         ax.set_ylabel(f"{summary.upper()} {labels.get(statistic, statistic)}")
         ax.grid(alpha=0.3)
-    axes[0][-1].legend(fontsize=8, loc="best")
+    handles, names = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, names, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.suptitle(title or f"{result.n_scenes} scenes per point")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
