@@ -134,6 +134,8 @@ def _run_reproduce(args) -> int:
     from ccjax.world import World
 
     world = World.barnard1999(args.data_dir, seed=args.seed)
+    if args.table == "5.1":
+        return _run_reproduce_5_1(args, world)
     methods = args.methods
     if methods is None and args.table in thesis.TABLES:
         methods = [m for m in thesis.TABLES[args.table] if experiments._is_registered(m) and _weights_ready(m, world)]
@@ -441,6 +443,81 @@ def _run_train_net(args) -> int:
 
 
 _COMMANDS = [_add_compare, _add_reproduce, _add_world, _add_cameras, _add_methods, _add_estimate, _add_correct, _add_evaluate, _add_train_net]
+
+
+# ---------------------------------------------------------------------------------------------
+# sharpen (Barnard 1999 ch. 5; ccjax.sharpening)
+
+
+def _add_sharpen(sub) -> None:
+    p = sub.add_parser("sharpen", help="compute a sensor-sharpening transform and its effect", description="Compute a sharpening transform T for the world's camera (thesis ch. 5): 'new' (the thesis' method: mapping error over the training lights + positivity + norm, from the identity), 'database' (eigenvectors of the best linear map for one test light) or 'average' (database sharpening for the mean training light). Prints T, the sharpened sensors' negative-lobe fractions and RMS mapping errors over the test lights (white = 255).")
+    _world_arguments(p)
+    p.add_argument("--method", choices=["new", "database", "average"], default="new", help="sharpening method (default: %(default)s)")
+    p.add_argument("--light", type=int, default=0, help="test-illuminant index for --method database (default: %(default)s)")
+    p.add_argument("--lambda-p", type=float, default=None, help="positivity weight for --method new (default: the smallest leaving < 0.1%% negative training responses)")
+    p.add_argument("--plot", default=None, help="write a PNG of the original and sharpened sensor curves")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=_run_sharpen)
+
+
+def _run_sharpen(args) -> int:
+    import numpy as np
+
+    from ccjax import sharpening
+
+    start = time.perf_counter()
+    world = _build_world(args)
+    info = {"world": world.name, "camera": world.camera.name, "method": args.method}
+    if args.method == "new":
+        result = sharpening.new_sharpening(world, lambda_p=args.lambda_p)
+        transform = result.transform
+        info.update(lambda_p=result.lambda_p, iterations=result.iterations, converged=result.converged,
+                    objective_initial=result.initial_objective, objective_final=result.objective,
+                    lambda_p_search=[list(step) for step in result.search])
+    elif args.method == "average":
+        transform = sharpening.average_sharpening(world)
+    else:
+        n_lights = int(world.test_illuminants.shape[0])
+        if not 0 <= args.light < n_lights:
+            raise ValueError(f"light: expected an index in [0, {n_lights}), got {args.light}")
+        transform = sharpening.optimal_sharpening(world, world.test_illuminants[args.light : args.light + 1])[0]
+    info["T"] = np.asarray(transform).tolist()
+    info.update(sharpening.summary(world, transform))
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        print(f"world: {world.name}; camera {world.camera.name}; method {args.method}")
+        print("T =")
+        for row in np.asarray(transform):
+            print("  " + " ".join(f"{v:9.5f}" for v in row))
+        if args.method == "new":
+            print(f"lambda_P = {info['lambda_p']:g} (search: {info['lambda_p_search']}); {info['iterations']} iterations, converged {info['converged']}")
+            print(f"objective {info['objective_initial']:.5f} (identity) -> {info['objective_final']:.5f}")
+        print("negative-lobe fraction of the sharpened sensors (R, G, B): " + ", ".join(f"{v:.4f}" for v in info["negative_lobes"]))
+        print(f"negative sharpened training responses: {info['negative_training_responses']:.4%}")
+        print("RMS mapping error over the test lights (white = 255):")
+        print(f"  BEST-LINEAR                  {info['best_linear']:8.3f}")
+        print(f"  BEST-DIAGONAL  none / T      {info['best_diagonal_unsharpened']:8.3f} / {info['best_diagonal_sharpened']:8.3f}")
+        print(f"  ACTUAL         none / T      {info['actual_unsharpened']:8.3f} / {info['actual_sharpened']:8.3f}")
+    if args.plot:
+        sharpening.plot_sensors(world, transform, args.plot, title=f"{world.camera.name}: {args.method} sharpening")
+        print(f"wrote {args.plot}", file=sys.stderr)
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    return 0
+
+
+def _run_reproduce_5_1(args, world) -> int:
+    """Table 5.1 has its own protocol (sharpening variants, whole-database mapping error)."""
+    import jax
+
+    from ccjax import sharpening
+
+    result = sharpening.reproduce_5_1(world, args.methods, args.scenes, jax.random.key(args.seed), progress=not args.no_progress)
+    print(result.to_json() if args.json else result.text())
+    return 0
+
+
+_COMMANDS.append(_add_sharpen)
 
 
 def main(argv: list[str] | None = None) -> int:
