@@ -442,7 +442,60 @@ def _run_train_net(args) -> int:
     return 0
 
 
-_COMMANDS = [_add_compare, _add_reproduce, _add_world, _add_cameras, _add_methods, _add_estimate, _add_correct, _add_evaluate, _add_train_net]
+# ---------------------------------------------------------------------------------------------
+# indexing (chapter 11; ccjax.indexing)
+
+DEFAULT_INDEXING_METHODS = [
+    "ACTUAL", "NOTHING", "AVE-ILLUM", "GW", "DB-GW", "RETINEX", "grey-edge-1-6-2",
+    "CRULE-MV", "CRULE-AVE", "ECRULE-MV", "ECRULE-ICA", "ECRULE-SCWIA-12",
+    "ND-CRULE-MV", "ND-CRULE-AVE", "ND-ECRULE-MV", "ND-ECRULE-ICA", "ND-ECRULE-SCWIA-12",
+    "C-by-C-MMSE", "RGB-C-by-C-MMSE",
+]
+
+
+def _add_indexing(sub) -> None:
+    p = sub.add_parser("indexing", help="colour indexing with each estimator as preprocessing (chapter 11)", description="Synthetic version of Barnard (1999) chapter 11: objects of random reflectance patches, database under the canonical light, queries under a subset of test lights; print each method's rg error, Score(1..3), rank counts, and the Spearman correlation of score with error.")
+    _world_arguments(p)
+    p.add_argument("--methods", type=_label_list, default=None, help="comma-separated labels; ACTUAL = the true light (default: baselines, grey edge and every registered gamut / C-by-C row)")
+    p.add_argument("--objects", type=int, default=50, help="objects in the database (default: %(default)s)")
+    p.add_argument("--surfaces", type=int, default=8, help="reflectances per object (default: %(default)s)")
+    p.add_argument("--lights", type=int, default=20, help="test lights per object (default: %(default)s)")
+    p.add_argument("--size", type=int, default=64, help="image side in pixels (default: %(default)s)")
+    p.add_argument("--preprocessing", default="ave5", help="preprocessing for surface-list methods (default: %(default)s)")
+    p.add_argument("--json", default=None, help="write the table as JSON ('-' for stdout)")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_run_indexing)
+
+
+def _run_indexing(args) -> int:
+    import jax
+
+    from ccjax import images, indexing
+    from ccjax.estimators import registry
+
+    def registered(label):
+        try:
+            registry.lookup(label)
+            return True
+        except ValueError:
+            return False
+
+    methods = args.methods or [m for m in DEFAULT_INDEXING_METHODS if m == "ACTUAL" or registered(m)]
+    start = time.perf_counter()
+    world = _image_world(args)
+    result = indexing.run_indexing(
+        world, methods, jax.random.key(args.seed), n_objects=args.objects, n_surfaces=args.surfaces,
+        n_lights=args.lights, size=args.size, preprocessing=args.preprocessing, progress=not args.no_progress,
+    )
+    print(f"world: {world.name}; {args.objects} objects x {args.lights} lights, {args.surfaces} reflectances each, {args.size}x{args.size} px")
+    print(result.table(), flush=True)
+    if args.json:
+        _write(args.json, json.dumps({"rows": result.rows, "spearman_score3": result.spearman(), "spearman_score1": result.spearman("score1")}, indent=1))
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    return 0
+
+
+_COMMANDS = [_add_compare, _add_reproduce, _add_world, _add_cameras, _add_methods, _add_estimate, _add_correct, _add_evaluate, _add_indexing, _add_train_net]
 
 
 # ---------------------------------------------------------------------------------------------
