@@ -266,16 +266,30 @@ def _loss(net: Mlp, histograms, targets) -> jax.Array:
     return jnp.mean(jnp.sum((predicted - targets) ** 2, axis=-1))
 
 
+# One optimiser object for every training run: its learning rate is a traced hyper-parameter set at
+# each step, so runs that differ only in their schedule share one compilation.
+_OPTIMISER = optax.inject_hyperparams(optax.adam)(learning_rate=0.0)
+
+
+def _cosine_rate(step, peak, total):
+    """Cosine decay from ``peak`` to ``0.01 * peak`` over ``total`` steps (as ``optax.cosine_decay_schedule``)."""
+    progress = jnp.minimum(step / total, 1.0)
+    return peak * (0.01 + 0.99 * 0.5 * (1.0 + jnp.cos(jnp.pi * progress)))
+
+
 @eqx.filter_jit
-def _train_chunk(net, opt_state, keys, tables, recipe, batch_size, optimiser):
-    def step(carry, key):
+def _train_chunk(net, opt_state, keys, steps, tables, recipe, batch_size, peak_rate, total_steps):
+    def step(carry, inputs):
         net, opt_state = carry
+        key, index = inputs
         histograms, targets = training_batch(key, tables, recipe, batch_size)
         loss, grads = eqx.filter_value_and_grad(_loss)(net, histograms, targets)
-        updates, opt_state = optimiser.update(grads, opt_state, net)
+        rate = _cosine_rate(index, peak_rate, total_steps)
+        opt_state.hyperparams["learning_rate"] = rate.astype(opt_state.hyperparams["learning_rate"].dtype)
+        updates, opt_state = _OPTIMISER.update(grads, opt_state, net)
         return (eqx.apply_updates(net, updates), opt_state), loss
 
-    (net, opt_state), losses = jax.lax.scan(step, (net, opt_state), keys)
+    (net, opt_state), losses = jax.lax.scan(step, (net, opt_state), (keys, steps))
     return net, opt_state, losses
 
 
@@ -316,16 +330,19 @@ def train(
     key_init, key_train = jax.random.split(jax.random.key(schedule.seed))
     net = Mlp(key_init, recipe.sizes())
     tables = SceneTables.from_world(training_world(world))
-    rate = optax.cosine_decay_schedule(schedule.learning_rate, schedule.steps, alpha=0.01)
-    optimiser = optax.adam(rate)
-    opt_state = optimiser.init(eqx.filter(net, eqx.is_array))
+    opt_state = _OPTIMISER.init(eqx.filter(net, eqx.is_array))
+    peak_rate = jnp.asarray(schedule.learning_rate, jnp.float32)
+    total_steps = jnp.asarray(schedule.steps, jnp.float32)
     losses = []
     bar = tqdm(total=schedule.steps, desc="train-net", unit="step", disable=not progress)
     done = 0
     while done < schedule.steps:
         size = min(chunk, schedule.steps - done)
-        keys = jax.vmap(lambda i: jax.random.fold_in(key_train, i))(jnp.arange(done, done + size, dtype=jnp.uint32))
-        net, opt_state, chunk_losses = _train_chunk(net, opt_state, keys, tables, recipe, schedule.batch_size, optimiser)
+        steps = jnp.arange(done, done + size, dtype=jnp.uint32)
+        keys = jax.vmap(lambda i: jax.random.fold_in(key_train, i))(steps)
+        net, opt_state, chunk_losses = _train_chunk(
+            net, opt_state, keys, steps.astype(jnp.float32), tables, recipe, schedule.batch_size, peak_rate, total_steps
+        )
         losses.append(float(jnp.mean(chunk_losses)))
         done += size
         bar.update(size)
