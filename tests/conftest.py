@@ -30,3 +30,15 @@ def barnard_world() -> World:
 @pytest.fixture(scope="session")
 def default_world() -> World:
     return World.default()
+
+
+def pytest_configure(config):
+    # Share compiled XLA programs between the xdist workers and between tests of one run: most of
+    # the suite's time is compilation, and many tests compile the same sweep shapes.
+    import tempfile
+
+    import jax
+
+    cache = os.environ.get("CCJAX_TEST_JAX_CACHE") or os.path.join(tempfile.gettempdir(), "ccjax-test-jax-cache")
+    jax.config.update("jax_compilation_cache_dir", cache)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
