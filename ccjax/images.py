@@ -547,6 +547,13 @@ def correction_map(
     return matrix / jnp.maximum(jnp.sum(matrix @ grey), 1e-12)
 
 
+def diagonal_gains(illuminant: Float[Array, "3"], canonical_white: Float[Array, "3"]) -> Float[Array, "3"]:
+    """The diagonal of :func:`correction_map` without sharpening (per-channel gains)."""
+    gains = canonical_white / jnp.where(illuminant > 1e-12, illuminant, 1e-12)
+    grey = illuminant / jnp.maximum(jnp.sum(illuminant), 1e-12)
+    return gains / jnp.maximum(jnp.sum(gains * grey), 1e-12)
+
+
 @jax.jit
 def apply_map(rgb: Float[Array, "... 3"], matrix: Float[Array, "3 3"]) -> Float[Array, "... 3"]:
     """Apply a 3x3 colour map to every pixel."""
@@ -554,8 +561,37 @@ def apply_map(rgb: Float[Array, "... 3"], matrix: Float[Array, "3 3"]) -> Float[
 
 
 def correct(rgb, illuminant, canonical_white, sharpening=None) -> Float[Array, "... 3"]:
-    """Map an image (or batch) from the estimated light to the canonical light."""
-    return apply_map(jnp.asarray(rgb), correction_map(jnp.asarray(illuminant), jnp.asarray(canonical_white), sharpening))
+    """Map an image from the estimated light to the canonical light (jit-able; a diagonal map is
+    applied as per-channel gains, a sharpened one as a 3x3 matrix)."""
+    rgb, illuminant, canonical_white = jnp.asarray(rgb), jnp.asarray(illuminant), jnp.asarray(canonical_white)
+    if sharpening is None:
+        return rgb * diagonal_gains(illuminant, canonical_white)
+    return apply_map(rgb, correction_map(illuminant, canonical_white, sharpening))
+
+
+def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "3"]:
+    """Mean RGB of the masked pixels (0 if none). Summed as a matrix-vector product over rows of
+    ``W * 3`` values: XLA's CPU reductions over a minor axis of 3 are several times slower."""
+    height, width, _ = rgb.shape
+    rows = jnp.where(mask[..., None], rgb, 0.0).reshape(height, width * 3)
+    total = (jnp.ones((height,), rgb.dtype) @ rows).reshape(width, 3).sum(axis=0)
+    return total / jnp.maximum(jnp.sum(mask), 1)
+
+
+def estimate_pixels(model: Estimator, rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
+    """Run a model on every masked pixel of an image (no block averaging), jit-able.
+
+    Image-only models get the image; grey-world models (linear in the pixels) get the masked mean
+    as a single datum, which gives the same estimate with one fast reduction; others get the
+    pixel list.
+    """
+    from ccjax.estimators.simple import GreyWorld
+
+    if model.input_kind == "image":
+        return model(rgb, mask)
+    if isinstance(model, GreyWorld):
+        return model(masked_mean(rgb, mask)[None], jnp.any(mask)[None])
+    return model(rgb.reshape(-1, 3), mask.reshape(-1))
 
 
 _XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]])
