@@ -163,3 +163,12 @@ def test_estimate_batches(default_world):
     one = ccjax.estimate("GW", rgb[2], world=default_world)
     assert batch.illuminant.shape == (4, 3)
     np.testing.assert_allclose(batch.illuminant[2], one.illuminant, rtol=1e-6)
+
+
+@pytest.mark.parametrize("length", [1, 2, 3, 7, 8, 65, 1024])
+def test_pairwise_reduce_equals_sum_and_max(length):
+    from ccjax.estimators.base import pairwise_reduce
+
+    x = np.random.default_rng(length).uniform(size=(length, 3)).astype(np.float32)
+    np.testing.assert_allclose(pairwise_reduce(jnp.asarray(x), jnp.add), x.sum(axis=0), rtol=1e-5)
+    np.testing.assert_array_equal(pairwise_reduce(jnp.asarray(x), jnp.maximum), x.max(axis=0))

@@ -43,6 +43,22 @@ class Estimator(eqx.Module):
         raise NotImplementedError
 
 
+def pairwise_reduce(values: Float[Array, "P ..."], op) -> Float[Array, "..."]:
+    """Reduce over the leading axis by repeated halving, ``op(first half, second half)``.
+
+    Equivalent to ``jnp.sum`` / ``jnp.max`` over axis 0 for ``op = jnp.add`` / ``jnp.maximum`` on
+    non-negative data (odd lengths are padded with zeros), but each step is an element-wise op on
+    contiguous blocks, which XLA vectorises well; a direct reduction over the surface axis with a
+    trailing RGB axis of 3 does not (2–3x slower on CPU, measured in ``benchmarks/simple.py``).
+    """
+    while values.shape[0] > 1:
+        if values.shape[0] % 2:
+            values = jnp.concatenate([values, jnp.zeros((1, *values.shape[1:]), values.dtype)])
+        half = values.shape[0] // 2
+        values = op(values[:half], values[half:])
+    return values[0]
+
+
 def with_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, "3"]) -> Estimate:
     """Return ``illuminant`` where ``usable``, else ``fallback`` with ``ok=False`` (never NaN)."""
     usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > TINY)

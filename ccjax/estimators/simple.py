@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
+from ccjax.estimators.base import TINY, Estimate, Estimator, pairwise_reduce, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -43,11 +43,9 @@ class GreyWorld(Estimator):
     estimates_brightness = True
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
-        # A mask-weighted dot product rather than a masked sum: XLA vectorises the dot far better
-        # over the short trailing RGB axis (several times faster on CPU).
         weights = mask.astype(rgb.dtype)
         count = jnp.sum(weights)
-        mean = (weights @ rgb) / jnp.maximum(count, 1.0)
+        mean = pairwise_reduce(rgb * weights[:, None], jnp.add) / jnp.maximum(count, 1.0)
         return with_fallback(mean * self.scale, count > 0, self.fallback)
 
 
@@ -65,11 +63,12 @@ class ShadesOfGrey(Estimator):
         weights = mask.astype(rgb.dtype)
         count = jnp.sum(weights)
         # Normalise by the brightest value first so rho^p neither overflows nor underflows.
-        peak = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
+        peak = jnp.max(pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum))
         safe_peak = jnp.where(peak > TINY, peak, 1.0)
         # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
         exponent = int(self.p) if float(self.p).is_integer() else self.p
-        mean = (weights @ (rgb / safe_peak) ** exponent) / jnp.maximum(count, 1.0)
+        powered = (rgb / safe_peak) ** exponent * weights[:, None]
+        mean = pairwise_reduce(powered, jnp.add) / jnp.maximum(count, 1.0)
         positive = mean > 0
         root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
         return with_fallback(2.0 * safe_peak * root, (count > 0) & (peak > TINY), self.fallback)
@@ -89,7 +88,7 @@ class MaxRGB(Estimator):
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
         count = jnp.sum(mask)
         if self.temperature is None:
-            maximum = jnp.max(jnp.where(mask[:, None], rgb, 0.0), axis=0)
+            maximum = pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum)
         else:
             t = self.temperature
             scaled = jnp.where(mask[:, None], rgb / t, 0.0)
