@@ -165,28 +165,26 @@ class GroundTruth:
     labels: tuple[str, ...]  # light code (SFU-321) or fold number (Gehler–Shi)
 
 
-def sfu321_groundtruth(data_dir=None) -> GroundTruth:
-    """Ground-truth illuminants of the 321 SFU lab images (unit-norm Sony DXC-930 RGB), external."""
-    path = find_data_file("sfu_barnard/sfu321_groundtruth.csv", data_dir)
+def _read_groundtruth(path: pathlib.Path, image: str, rgb: tuple[str, str, str], label: str) -> GroundTruth:
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
     return GroundTruth(
-        images=tuple(r["image"] for r in rows),
-        rgb=np.array([[float(r["r"]), float(r["g"]), float(r["b"])] for r in rows]),
-        labels=tuple(r["light"] for r in rows),
+        images=tuple(r[image] for r in rows),
+        rgb=np.array([[float(r[c]) for c in rgb] for r in rows]),
+        labels=tuple(r[label] for r in rows),
     )
+
+
+def sfu321_groundtruth(data_dir=None) -> GroundTruth:
+    """Ground-truth illuminants of the 321 SFU lab images (unit-norm Sony DXC-930 RGB), external."""
+    path = find_data_file("sfu_barnard/sfu321_groundtruth.csv", data_dir)
+    return _read_groundtruth(path, "image", ("r", "g", "b"), "light")
 
 
 def gehler_shi_groundtruth(data_dir=None) -> GroundTruth:
     """Gehler–Shi (568 images) recommended ground truth (Hemrit et al. 2018) with folds, external."""
     path = find_data_file("gehler_shi_groundtruth/GT_HemritRec.txt", data_dir)
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    return GroundTruth(
-        images=tuple(r["File"] for r in rows),
-        rgb=np.array([[float(r["R"]), float(r["G"]), float(r["B"])] for r in rows]),
-        labels=tuple(r["Fold"] for r in rows),
-    )
+    return _read_groundtruth(path, "File", ("R", "G", "B"), "Fold")
 
 
 def jiang_cameras(data_dir=None) -> dict[str, np.ndarray]:
