@@ -1,0 +1,45 @@
+"""Camera calibration (Barnard 1999 chapter 3): sensor curves, linearisation and noise model.
+
+* :func:`fit_sensors` — smooth, constrained, relative-error least squares (§3.4), optionally fitting
+  the linearisation F jointly (eqs. 3.14–3.16); jaxopt solvers, vmapped over channels.
+* :func:`fit_sensors_cv` — the smoothness chosen by cross-validation.
+* :func:`pseudo_inverse` — the baselines of Table 3.1 (plain, and with positivity).
+* :func:`fit_noise_model` — variance = a * mean + floor from repeated measurements (§3.4, Fig. 3.1).
+* :func:`synthetic_calibration` — the thesis' experiment with a known camera (§3.5).
+* :func:`read_calibration_csv` — calibration data from a file (``ccjax calibrate``).
+"""
+
+from ccjax.calibration.fitting import (
+    DEFAULT_SMOOTHNESS,
+    FitErrors,
+    FitStatus,
+    Linearisation,
+    SensorFit,
+    apply_linearisation,
+    curve_error,
+    fit_errors,
+    fit_sensors,
+    invert_linearisation,
+    pseudo_inverse,
+    second_difference,
+    support_of,
+)
+from ccjax.calibration.synthetic import SyntheticCalibration, synthetic_calibration
+
+__all__ = [
+    "DEFAULT_SMOOTHNESS",
+    "FitErrors",
+    "FitStatus",
+    "Linearisation",
+    "SensorFit",
+    "SyntheticCalibration",
+    "apply_linearisation",
+    "curve_error",
+    "fit_errors",
+    "fit_sensors",
+    "invert_linearisation",
+    "pseudo_inverse",
+    "second_difference",
+    "support_of",
+    "synthetic_calibration",
+]
