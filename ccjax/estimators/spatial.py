@@ -72,28 +72,41 @@ def support_radius(order: int, sigma: float) -> int:
     return int(math.ceil(2.0 * sigma))
 
 
-def _filter_axis(image: Float[Array, "H W C"], taps: np.ndarray, axis: int) -> Float[Array, "H W C"]:
-    """``out[i] = sum_x taps[x] image[i - x]`` along ``axis`` with edge replication."""
+def _filter_axis(planes: Float[Array, "C H W"], taps: np.ndarray, axis: int) -> Float[Array, "C H W"]:
+    """``out[i] = sum_x taps[x] planes[i - x]`` along ``axis`` with edge replication."""
     if taps.size == 1:
-        return image * taps[0]
+        return planes * float(taps[0])
     radius = taps.size // 2
-    pad = [(0, 0)] * image.ndim
+    pad = [(0, 0)] * planes.ndim
     pad[axis] = (radius, radius)
-    padded = jnp.pad(image, pad, mode="edge")
-    length = image.shape[axis]
-    out = jnp.zeros_like(image)
-    # A static loop over the taps (not the pixels): XLA fuses the shifted multiply-adds.
-    for index, weight in enumerate(taps[::-1]):
-        if weight != 0.0:
-            out = out + float(weight) * jax.lax.slice_in_dim(padded, index, index + length, axis=axis)
+    padded = jnp.pad(planes, pad, mode="edge")
+    length = planes.shape[axis]
+
+    def shifted(start):
+        return jax.lax.slice_in_dim(padded, start, start + length, axis=axis)
+
+    # A static loop over the taps (not the pixels), pairing the mirror taps of the symmetric
+    # (even order) and antisymmetric (odd order) kernels: half the multiplications.
+    reverse = taps[::-1]
+    out = float(reverse[radius]) * shifted(radius)
+    for k in range(1, radius + 1):
+        left, right = float(reverse[radius - k]), float(reverse[radius + k])
+        if left == right:
+            out = out + left * (shifted(radius - k) + shifted(radius + k))
+        elif left == -right:
+            out = out + left * (shifted(radius - k) - shifted(radius + k))
+        else:
+            out = out + left * shifted(radius - k) + right * shifted(radius + k)
     return out
 
 
-def _derivative(image, sigma: float, order_y: int, order_x: int):
-    smoothed = _filter_axis(image, derivative_kernel(sigma, order_y), axis=0)
+def _derivative(planes, sigma: float, order_y: int, order_x: int):
+    # Channel-first planes, filtered along y (axis 1) first and x (axis 2) second: on XLA's CPU
+    # backend this order and layout run several times faster than the others.
+    smoothed = _filter_axis(planes, derivative_kernel(sigma, order_y), axis=1)
     # Materialise the first pass: fused into the second, XLA would recompute it for every tap.
     smoothed = jax.lax.optimization_barrier(smoothed)
-    return _filter_axis(smoothed, derivative_kernel(sigma, order_x), axis=1)
+    return _filter_axis(smoothed, derivative_kernel(sigma, order_x), axis=2)
 
 
 def _safe_sqrt(x):
@@ -101,16 +114,21 @@ def _safe_sqrt(x):
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
 
 
+def _planar_response(planes: Float[Array, "3 H W"], order: int, sigma: float) -> Float[Array, "3 H W"]:
+    if order == 0:
+        return _derivative(planes, sigma, 0, 0)
+    if order == 1:
+        dx, dy = jax.lax.optimization_barrier((_derivative(planes, sigma, 0, 1), _derivative(planes, sigma, 1, 0)))
+        return _safe_sqrt(dx**2 + dy**2)
+    xx, yy, xy = jax.lax.optimization_barrier(
+        (_derivative(planes, sigma, 0, 2), _derivative(planes, sigma, 2, 0), _derivative(planes, sigma, 1, 1))
+    )
+    return _safe_sqrt(xx**2 + 4.0 * xy**2 + yy**2)
+
+
 def edge_response(image: Float[Array, "H W 3"], order: int, sigma: float) -> Float[Array, "H W 3"]:
     """``d_c`` of the module docstring: smoothed image (n = 0) or derivative magnitude (n = 1, 2)."""
-    if order == 0:
-        return _derivative(image, sigma, 0, 0)
-    if order == 1:
-        return _safe_sqrt(_derivative(image, sigma, 0, 1) ** 2 + _derivative(image, sigma, 1, 0) ** 2)
-    xx = _derivative(image, sigma, 0, 2)
-    yy = _derivative(image, sigma, 2, 0)
-    xy = _derivative(image, sigma, 1, 1)
-    return _safe_sqrt(xx**2 + 4.0 * xy**2 + yy**2)
+    return jnp.moveaxis(_planar_response(jnp.moveaxis(image, -1, 0), order, sigma), 0, -1)
 
 
 def valid_positions(mask: Bool[Array, "H W"], radius: int) -> Bool[Array, "H W"]:
@@ -128,11 +146,12 @@ def valid_positions(mask: Bool[Array, "H W"], radius: int) -> Bool[Array, "H W"]
     return mask
 
 
-def minkowski_mean(values: Float[Array, "H W 3"], valid: Bool[Array, "H W"], p: float) -> Float[Array, "3"]:
-    """``(mean over valid of values^p)^(1/p)`` per channel (non-negative values; ``p = inf``: max)."""
-    weights = valid[..., None]
+def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: float) -> Float[Array, "3"]:
+    """``(mean over valid of values^p)^(1/p)`` per channel plane (non-negative values; ``p = inf``:
+    the maximum)."""
+    weights = valid[None]
     if math.isinf(p):
-        return jnp.max(jnp.where(weights, values, 0.0), axis=(0, 1))
+        return jnp.max(jnp.where(weights, values, 0.0), axis=(1, 2))
     count = jnp.maximum(jnp.sum(valid), 1)
     # Divide by the peak first so values^p neither overflows nor underflows for large p.
     peak = jax.lax.stop_gradient(jnp.max(jnp.where(weights, values, 0.0)))
@@ -141,7 +160,7 @@ def minkowski_mean(values: Float[Array, "H W 3"], valid: Bool[Array, "H W"], p: 
     # An integer p is a few multiplications; a fractional one needs exp(p log x) (and x = 0 guarded).
     exponent = int(p) if float(p).is_integer() else p
     powered = jnp.where(weights & (scaled > 0), jnp.where(scaled > 0, scaled, 1.0) ** exponent, 0.0)
-    mean = jnp.sum(powered, axis=(0, 1)) / count
+    mean = jnp.sum(powered, axis=(1, 2)) / count
     positive = mean > 0
     return peak * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / p), 0.0)
 
@@ -161,7 +180,7 @@ class GreyEdge(Estimator):
     input_kind = "image"
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
-        response = edge_response(image, self.order, self.sigma)
+        response = _planar_response(jnp.moveaxis(image, -1, 0), self.order, self.sigma)
         valid = valid_positions(mask, support_radius(self.order, self.sigma))
         estimate = minkowski_mean(response, valid, self.p)
         # Edges of a flat image are rounding noise, not zero: demand edges above float precision.
