@@ -139,8 +139,8 @@ def sharpness(world: World, spectra: Float[Array, "J 101"] | None = None) -> dic
     spectra = world.test_illuminants if spectra is None else spectra
     sources = database_responses(world, spectra)
     target = world.canonical_rgb
-    linear = jax.vmap(best_linear_error, (0, None))(sources, target)
-    diagonal = jax.vmap(diagonal_error, (0, None, None))(sources, target, jnp.eye(3, dtype=target.dtype))
+    linear = jax.jit(jax.vmap(best_linear_error, (0, None)))(sources, target)
+    diagonal = jax.jit(jax.vmap(diagonal_error, (0, None, None)))(sources, target, jnp.eye(3, dtype=target.dtype))
     rms_linear = float(jnp.sqrt(jnp.mean(linear**2))) * THESIS_SCALE
     rms_diagonal = float(jnp.sqrt(jnp.mean(diagonal**2))) * THESIS_SCALE
     return {"best_linear": rms_linear, "best_diagonal": rms_diagonal, "ratio": rms_linear / rms_diagonal}
@@ -932,11 +932,13 @@ def summary(world: World, transform) -> dict:
     out = {
         "negative_lobes": negative_lobes(world.camera.sensors @ t).tolist(),
         "negative_training_responses": float(jnp.mean(database_responses(world, world.train_illuminants) @ t < 0)),
-        "best_linear": rms(jax.vmap(best_linear_error, (0, None))(sources, target)),
+        "best_linear": rms(jax.jit(jax.vmap(best_linear_error, (0, None)))(sources, target)),
     }
+    diagonal = jax.jit(jax.vmap(diagonal_error, (0, None, None)))
+    actual = jax.jit(jax.vmap(_actual_error, (0, None, None, 0, None)))
     for name, m in (("unsharpened", identity), ("sharpened", t)):
-        out[f"best_diagonal_{name}"] = rms(jax.vmap(diagonal_error, (0, None, None))(sources, target, m))
-        out[f"actual_{name}"] = rms(jax.vmap(_actual_error, (0, None, None, 0, None))(sources, target, m, whites, white))
+        out[f"best_diagonal_{name}"] = rms(diagonal(sources, target, m))
+        out[f"actual_{name}"] = rms(actual(sources, target, m, whites, white))
     return out
 
 
