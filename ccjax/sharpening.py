@@ -125,6 +125,15 @@ def diagonal_error(
     return mapping_error(source, target, transform, best_diagonal_map(source, target, transform))
 
 
+@jax.jit
+def _sharpness_kernel(sensors, reflectances, target, spectra):
+    def one(spectrum):
+        source = (reflectances * spectrum) @ sensors
+        return best_linear_error(source, target), diagonal_error(source, target, jnp.eye(3, dtype=target.dtype))
+
+    return jax.lax.map(one, spectra)
+
+
 def sharpness(world: World, spectra: Float[Array, "J 101"] | None = None) -> dict[str, float]:
     """Sharpness of the camera (§5.7): RMS over illuminants of BEST-LINEAR's error divided by that
     of BEST-DIAGONAL without sharpening (<= 1; 1 for delta-function sensors).
@@ -136,11 +145,12 @@ def sharpness(world: World, spectra: Float[Array, "J 101"] | None = None) -> dic
     Returns:
         ``{"best_linear", "best_diagonal", "ratio"}``, errors in thesis units (white = 255).
     """
-    spectra = world.test_illuminants if spectra is None else spectra
-    sources = database_responses(world, spectra)
-    target = world.canonical_rgb
-    linear = jax.jit(jax.vmap(best_linear_error, (0, None)))(sources, target)
-    diagonal = jax.jit(jax.vmap(diagonal_error, (0, None, None)))(sources, target, jnp.eye(3, dtype=target.dtype))
+    spectra = jnp.asarray(world.test_illuminants if spectra is None else spectra)
+    count = spectra.shape[0]
+    # Pad the light axis to a multiple of 64 so worlds of similar size share one compilation.
+    padded = jnp.concatenate([spectra, jnp.repeat(spectra[:1], -count % 64, axis=0)])
+    linear, diagonal = _sharpness_kernel(world.camera.sensors, world.reflectances, world.canonical_rgb, padded)
+    linear, diagonal = linear[:count], diagonal[:count]
     rms_linear = float(jnp.sqrt(jnp.mean(linear**2))) * THESIS_SCALE
     rms_diagonal = float(jnp.sqrt(jnp.mean(diagonal**2))) * THESIS_SCALE
     return {"best_linear": rms_linear, "best_diagonal": rms_diagonal, "ratio": rms_linear / rms_diagonal}
@@ -966,3 +976,150 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# Learned end-to-end sharpening (beyond the thesis; spec §8 "task-driven sharpening")
+
+
+@dataclass
+class LearnedSharpening:
+    """``T`` learned through an estimator: ``transform`` (unit columns), the training loss per step
+    (``losses``, RMS over the batch: thesis units for the mapping loss, degrees for the angle)."""
+
+    transform: np.ndarray
+    estimator: str
+    loss: str
+    losses: list
+    seconds: float
+
+
+def _scene_losses(parameters, label, loss, world, train, whites, lights, surfaces, plain):
+    transform = _on_sphere(parameters)
+    model = sharpened(label, transform, world, plain=plain)
+    canonical, canonical_white = world.canonical_rgb, world.canonical_white
+
+    def one(light, chosen):
+        rgb = train[light, chosen]
+        estimate = model.run(rgb, jnp.ones(chosen.shape, bool)).illuminant
+        if loss == "angular":
+            return metrics.angular_error(estimate, whites[light])
+        sharp_map = (canonical_white @ transform) / (estimate @ transform)
+        return mapping_error(train[light], canonical, transform, sharp_map) * THESIS_SCALE
+
+    return jax.vmap(one)(lights, surfaces)
+
+
+def learned_sharpening(
+    world: World,
+    estimator: str = "GW",
+    loss: str = "mapping",
+    *,
+    steps: int = 300,
+    batch_size: int = 128,
+    n_surfaces: int = 8,
+    learning_rate: float = 3e-3,
+    key=None,
+) -> LearnedSharpening:
+    """Learn ``T`` by gradient descent through a differentiable estimator (beyond the thesis).
+
+    Training scenes (``n_surfaces`` random reflectances under a random *training* illuminant, fresh
+    every step) are run through ``sharpened(estimator, T)``; the loss is the mean square of the
+    chapter-5 mapping error (``loss="mapping"``; the one to use for GW, whose chromaticity does not
+    depend on ``T``, DESIGN.md §5) or of the angular error (``loss="angular"``, for non-linear
+    estimators such as ``soft-RETINEX-t0.01`` or ``shades-of-grey-p6``). ``T`` starts at the
+    identity and stays on ``|T|_F^2 = 3`` (the new method's norm constraint); Adam (optax).
+
+    Arguments:
+        world: training illuminants, reflectances, canonical light.
+        estimator: a registry label whose fit is plain JAX (GW, DB-GW, shades of grey, soft RETINEX).
+        loss: ``"mapping"`` or ``"angular"``.
+        steps, batch_size, n_surfaces, learning_rate: the schedule.
+        key: PRNG key (default ``jax.random.key(1)``).
+    """
+    import optax
+
+    from ccjax.estimators import registry
+
+    if loss not in ("mapping", "angular"):
+        raise ValueError(f"loss: expected 'mapping' or 'angular', got {loss!r}")
+    if not isinstance(steps, int) or steps < 1:
+        raise ValueError(f"steps: expected a positive integer, got {steps!r}")
+    key = jax.random.key(1) if key is None else key
+    train = database_responses(world, world.train_illuminants)
+    whites = world.train_whites
+    plain = registry.fit(estimator, world)
+    n_lights, n_reflectances = train.shape[:2]
+    optimiser = optax.adam(learning_rate)
+
+    @eqx.filter_jit
+    def step(parameters, state, step_key):
+        draws = Chapter5Scenes.draw(step_key, n_lights, n_reflectances, batch_size, n_surfaces)
+
+        def batch_loss(p):
+            errors = _scene_losses(p, estimator, loss, world, train, whites, draws.light, draws.surfaces, plain)
+            return jnp.mean(errors**2)
+
+        value, grad = jax.value_and_grad(batch_loss)(parameters)
+        updates, state = optimiser.update(grad, state, parameters)
+        return optax.apply_updates(parameters, updates), state, value
+
+    parameters = jnp.eye(3, dtype=train.dtype)
+    state = optimiser.init(parameters)
+    losses = []
+    start = time.perf_counter()
+    for index in range(steps):
+        parameters, state, value = step(parameters, state, jax.random.fold_in(key, index))
+        losses.append(float(jnp.sqrt(value)))
+    t = np.asarray(_on_sphere(parameters), dtype=np.float64)
+    return LearnedSharpening(
+        transform=t / np.linalg.norm(t, axis=0, keepdims=True),
+        estimator=estimator,
+        loss=loss,
+        losses=losses,
+        seconds=time.perf_counter() - start,
+    )
+
+
+def evaluate_transforms(
+    world: World, label: str, transforms: dict, n_scenes: int = 1000, n_surfaces: int = 8, key=None
+) -> dict:
+    """RMS chapter-5 mapping error (thesis units), RMS angular error and revert count of ``label``
+    under each named transform, on the same held-out scenes under the world's *test* lights."""
+    from ccjax.estimators import registry
+
+    key = jax.random.key(0) if key is None else key
+    data = Chapter5Data.of(world)
+    scenes = Chapter5Scenes.draw(key, data.database.shape[0], data.database.shape[1], n_scenes, n_surfaces)
+    plain = registry.fit(label, world)
+    out = {}
+    for name, transform in transforms.items():
+        t = jnp.asarray(transform, data.canonical.dtype)
+        model = sharpened(label, t, world, plain=plain)
+        mapping, angle, reverted = _run_fixed(model, data, scenes, t)
+        out[name] = {
+            "map_rgb": float(jnp.sqrt(jnp.mean(mapping**2))) * THESIS_SCALE,
+            "angular": float(jnp.sqrt(jnp.mean(angle**2))),
+            "reverted": int(jnp.sum(reverted)),
+        }
+    return out
+
+
+def rank_cameras(data_dir=None, names: Sequence[str] | None = None, progress: bool = False) -> list[dict]:
+    """Sharpness (BEST-LINEAR / BEST-DIAGONAL over the test lights, §5.7) of every available camera,
+    each in ``World.default(camera=...)``, least sharp first.
+
+    Returns:
+        ``[{"camera", "source", "ratio", "best_linear", "best_diagonal"}]`` sorted by ratio.
+    """
+    from ccjax.camera import Camera, cameras
+
+    available = cameras(data_dir)
+    rows = []
+    for name in names or list(available):
+        world = World.default(Camera.from_name(name, data_dir))
+        out = sharpness(world)
+        rows.append({"camera": name, "source": available.get(name, "?"), **out})
+        if progress:
+            print(f"  {name:<36}{out['ratio']:.3f}", flush=True)
+    return sorted(rows, key=lambda row: row["ratio"])
