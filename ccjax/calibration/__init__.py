@@ -7,6 +7,9 @@
 * :func:`fit_noise_model` — variance = a * mean + floor from repeated measurements (§3.4, Fig. 3.1).
 * :func:`synthetic_calibration` — the thesis' experiment with a known camera (§3.5).
 * :func:`read_calibration_csv` — calibration data from a file (``ccjax calibrate``).
+* :func:`fit_sensors_batch` / :func:`fit_subsets` — many fits as one vmapped program.
+* :mod:`ccjax.calibration.experiment` — Table 3.1, the held-out check, the robustness experiment
+  (Fig. 3.6) and the plots behind ``ccjax calibrate``.
 """
 
 from ccjax.calibration.fitting import (
@@ -24,9 +27,27 @@ from ccjax.calibration.fitting import (
     second_difference,
     support_of,
 )
+from ccjax.calibration.batch import BatchFit, CrossValidation, evaluate_batch, fit_sensors_batch, fit_sensors_cv, fit_subsets, random_subsets
+from ccjax.calibration.files import CalibrationData, CalibrationFileError, read_calibration_csv, write_calibration_csv, write_sensors_csv
+from ccjax.calibration.noise import NoiseModel, fit_noise_model, synthetic_repeats
 from ccjax.calibration.synthetic import SyntheticCalibration, synthetic_calibration
 
 __all__ = [
+    "BatchFit",
+    "CalibrationData",
+    "CalibrationFileError",
+    "CrossValidation",
+    "NoiseModel",
+    "evaluate_batch",
+    "fit_noise_model",
+    "fit_sensors_batch",
+    "fit_sensors_cv",
+    "fit_subsets",
+    "random_subsets",
+    "read_calibration_csv",
+    "synthetic_repeats",
+    "write_calibration_csv",
+    "write_sensors_csv",
     "DEFAULT_SMOOTHNESS",
     "FitErrors",
     "FitStatus",
