@@ -480,8 +480,9 @@ class Sharpened(Estimator):
 
     The input is sharpened (``x @ T``), ``inner`` (fitted in the sharpened world) estimates the
     sharpened white ``e#``, and the answer is ``e# @ T^-1``. Where negative values make the
-    sharpened run invalid — negative sharpened calibration data (``calibration_ok`` False), a
-    negative sharpened input, or the inner estimator failing (``ok`` False) — and
+    sharpened run invalid — a non-positive sharpened training or canonical white
+    (``calibration_ok`` False; it affects every scene), a non-positive sharpened input (that
+    scene), or the inner estimator failing (``ok`` False: no feasible map) — and
     ``requires_positive`` is set (gamut mapping), the scene reverts to ``plain``'s unsharpened
     answer (§5.2: no clipping, offsetting or dropping), flagged in ``reverted``.
     """
@@ -565,12 +566,23 @@ def sharpened(
     if requires_positive is None:
         requires_positive = isinstance(estimator, str) and bool(_NEEDS_POSITIVE.search(estimator))
     sharp = sharpened_world(world, t)
-    calibration_ok = jnp.all(sharp.canonical_rgb > 0) & jnp.all(sharp.train_whites > 0) & jnp.all(
-        sharp.canonical_white > 0
-    )
+    # Calibration data that must be positive: the sharpened whites (the illumination constraint and
+    # the map w_c# / e# live in the positive octant). A few slightly negative canonical-gamut points
+    # are tolerated: the hull still contains the origin and its constraints stay valid for positive
+    # inputs and maps; a fit that refuses them makes every scene revert (below).
+    calibration_ok = jnp.all(sharp.train_whites > 0) & jnp.all(sharp.canonical_white > 0)
+    plain = fit(world) if plain is None else plain
+    try:
+        inner = fit(sharp)
+    except ValueError:
+        # A fit that refuses negative sharpened calibration data (e.g. a gamut hull) cannot run in
+        # this space at all: every scene reverts (§5.2; the thesis' DCS-200 "ave" rows).
+        if not requires_positive:
+            raise
+        inner, calibration_ok = plain, jnp.asarray(False)
     return Sharpened(
-        inner=fit(sharp),
-        plain=fit(world) if plain is None else plain,
+        inner=inner,
+        plain=plain,
         transform=t,
         inverse=jnp.linalg.inv(t),
         calibration_ok=calibration_ok,
