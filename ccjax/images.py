@@ -204,6 +204,9 @@ class LinearImage:
         return self.rgb.shape[:2]
 
 
+_RAW_CLIP = 0.999  # LibRaw's scaled white level can round down by a code or two
+
+
 def _read_raw(path: Path) -> tuple[np.ndarray, float, float]:
     try:
         import rawpy
@@ -215,8 +218,10 @@ def _read_raw(path: Path) -> tuple[np.ndarray, float, float]:
         pixels = raw.postprocess(
             output_color=rawpy.ColorSpace.raw, gamma=(1, 1), no_auto_bright=True, output_bps=16,
             use_camera_wb=False, use_auto_wb=False, user_wb=[1.0, 1.0, 1.0, 1.0], half_size=True, user_flip=0,
+            adjust_maximum_thr=0.0,  # keep the camera's white level (LibRaw would lower it to the data's maximum)
         )
-    # LibRaw has subtracted the black level and scaled the white level to 65535.
+    # LibRaw has subtracted the black level and scaled the white level to 65535 (give or take its
+    # rounding: a saturated pixel comes out as 65534, see _RAW_CLIP).
     return pixels, 0.0, 65535.0
 
 
@@ -297,7 +302,8 @@ def read_image(
     values = pixels.astype(np.float32)
     if not np.all(np.isfinite(values)):
         raise ValueError(f"image: {path} contains NaN or infinite values")
-    clipped = np.any(values >= level, axis=-1)
+    clip_level = level * (_RAW_CLIP if default_saturation is not None and saturation is None else 1.0)
+    clipped = np.any(values >= clip_level, axis=-1)
     if np.all(clipped):
         raise ValueError(f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g})")
     rgb = np.maximum(values - np.float32(black_level), 0.0) / np.float32(level - black_level)

@@ -405,3 +405,33 @@ def test_round_trip_files_equal_memory(tmp_path, world, cache, monkeypatch, mond
             estimate = images.estimate_image(model, memory)
             error = float(angular_error(estimate.illuminant, jnp.asarray(batch.illuminant[index])))
             assert abs(error - file_errors[index]) <= 1e-3, (method, index)
+
+
+def _write_dng(path, cfa, white):
+    """A minimal uncompressed RGGB DNG (tifffile + the DNG tags LibRaw needs)."""
+    extratags = [
+        (33421, "H", 2, (2, 2), True),  # CFARepeatPatternDim
+        (33422, "B", 4, (0, 1, 1, 2), True),  # CFAPattern: RGGB
+        (50706, "B", 4, (1, 4, 0, 0), True),  # DNGVersion
+        (50707, "B", 4, (1, 1, 0, 0), True),  # DNGBackwardVersion
+        (50708, "s", 0, "ccjax test", True),  # UniqueCameraModel
+        (50714, "H", 1, 0, True),  # BlackLevel
+        (50717, "H", 1, white, True),  # WhiteLevel
+        (50721, "2i", 9, (1, 1, 0, 1, 0, 1, 0, 1, 1, 1, 0, 1, 0, 1, 0, 1, 1, 1), True),  # ColorMatrix1
+        (50778, "H", 1, 21, True),  # CalibrationIlluminant1
+        (271, "s", 0, "Canon", True),
+        (272, "s", 0, "Canon EOS 5D Mark II", True),
+    ]
+    tifffile.imwrite(path, cfa, photometric=32803, extratags=extratags, metadata=None)
+
+
+def test_raw_file_through_rawpy(tmp_path):
+    pytest.importorskip("rawpy", reason="the raw extra (rawpy) is not installed")
+    cfa = np.zeros((64, 96), np.uint16)
+    cfa[0::2, 0::2], cfa[0::2, 1::2], cfa[1::2, 0::2], cfa[1::2, 1::2] = 1000, 2000, 2000, 3000
+    cfa[:2, :2] = 4095  # one saturated Bayer quad
+    _write_dng(tmp_path / "a.dng", cfa, 4095)
+    image = images.read_image(tmp_path / "a.dng")
+    assert image.rgb.shape == (32, 48, 3)  # one pixel per Bayer quad (no demosaicing)
+    np.testing.assert_allclose(image.rgb[5, 5], np.array([1000, 2000, 3000]) / 4095, rtol=2e-4)
+    assert image.clipped[0, 0] and image.clipped.sum() == 1
