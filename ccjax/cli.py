@@ -267,6 +267,7 @@ def _image_world(args):
 
     if args.world == "barnard1999" and args.camera:
         raise SystemExit("--camera applies to --world default only (barnard1999 is the Sony DXC-930 world)")
+    images.enable_compilation_cache()
     return images.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
