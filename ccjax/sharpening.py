@@ -1094,20 +1094,26 @@ def learned_sharpening(
 
 
 def evaluate_transforms(
-    world: World, label: str, transforms: dict, n_scenes: int = 1000, n_surfaces: int = 8, key=None
+    world: World,
+    label: str | Callable[[World], Estimator],
+    transforms: dict,
+    n_scenes: int = 1000,
+    n_surfaces: int = 8,
+    key=None,
+    *,
+    requires_positive: bool | None = None,
 ) -> dict:
-    """RMS chapter-5 mapping error (thesis units), RMS angular error and revert count of ``label``
-    under each named transform, on the same held-out scenes under the world's *test* lights."""
-    from ccjax.estimators import registry
-
+    """RMS chapter-5 mapping error (thesis units), RMS angular error and revert count of an
+    estimator (label or ``fit(world)``) under each named transform, on the same held-out scenes
+    under the world's *test* lights."""
     key = jax.random.key(0) if key is None else key
     data = Chapter5Data.of(world)
     scenes = Chapter5Scenes.draw(key, data.database.shape[0], data.database.shape[1], n_scenes, n_surfaces)
-    plain = registry.fit(label, world)
+    plain = _fitter(label)(world)
     out = {}
     for name, transform in transforms.items():
         t = jnp.asarray(transform, data.canonical.dtype)
-        model = sharpened(label, t, world, plain=plain)
+        model = sharpened(label, t, world, plain=plain, requires_positive=requires_positive)
         mapping, angle, reverted = _run_fixed(model, data, scenes, t)
         out[name] = {
             "map_rgb": float(jnp.sqrt(jnp.mean(mapping**2))) * THESIS_SCALE,
