@@ -355,12 +355,23 @@ def usable_pixels(rgb: np.ndarray, clipped: np.ndarray, dark: float = DEFAULT_DA
     return ~clipped & (brightness >= dark * peak) & (brightness > 0)
 
 
-def block_average(rgb: np.ndarray, usable: np.ndarray, block: int) -> np.ndarray:
+def block_average(rgb: np.ndarray, usable: np.ndarray, block: int, max_rg_spread: float | None = None) -> np.ndarray:
     """Means of non-overlapping ``block x block`` tiles whose pixels are all usable (spec §10
-    item 31); edge rows/columns that do not fill a tile are dropped. Returns ``(n, 3)``."""
+    item 31); edge rows/columns that do not fill a tile are dropped. Returns ``(n, 3)``.
+
+    ``max_rg_spread`` (an extension, not in the thesis) also drops tiles whose pixels' (r,g)
+    bounding box has a diagonal above it: tiles straddling a boundary between surfaces, whose
+    mean is a mixture no surface produces (harmless for gamut mapping, which is convex, but it
+    fills histogram cells for Colour by Correlation).
+    """
     height, width = (rgb.shape[0] // block) * block, (rgb.shape[1] // block) * block
     tiles = rgb[:height, :width].reshape(height // block, block, width // block, block, 3)
     ok = usable[:height, :width].reshape(height // block, block, width // block, block).all(axis=(1, 3))
+    if max_rg_spread is not None:
+        total = tiles.sum(axis=-1, keepdims=True, dtype=np.float64)
+        chroma = tiles[..., :2] / np.where(total > 0, total, 1.0)
+        spread = chroma.max(axis=(1, 3)) - chroma.min(axis=(1, 3))
+        ok &= np.sqrt((spread**2).sum(axis=-1)) <= max_rg_spread
     return tiles.mean(axis=(1, 3), dtype=np.float64)[ok].astype(np.float32)
 
 
@@ -441,26 +452,30 @@ class Preprocessing:
     ``ave<b>`` (block averaging, ``ave1`` = single pixels), ``ave<b>-cluster`` (+ RGB clustering,
     100 divisions), ``ave<b>-hull`` (+ convex-hull reduction), ``seg-<min size>-<rg tol>-<rel
     R+G+B tol>`` (segmentation, e.g. ``seg-5-0.005-0.2``), ``seg-...-hull``, and ``generic``
-    (Table 4.5's segmentation, ``seg-5-0.05-0.1``).
+    (Table 4.5's segmentation, ``seg-5-0.05-0.1``). Extension: ``ave<b>-u<spread>`` keeps only
+    blocks whose (r,g) spread is at most ``<spread>`` (e.g. ``ave5-u0.04``; :func:`block_average`),
+    combinable with ``-cluster``/``-hull``.
     """
 
     name: str
     block: int = 5
     segmentation: tuple[int, float, float] | None = None
     reduction: str | None = None  # None, "cluster" or "hull"
+    max_rg_spread: float | None = None
 
     @classmethod
     def parse(cls, name: str) -> "Preprocessing":
         text = "seg-5-0.05-0.1" if name == "generic" else name
         number = r"(\d+(?:\.\d*)?|\.\d+)"
-        match = re.fullmatch(r"ave(\d+)(?:-(cluster|hull))?", text)
+        match = re.fullmatch(rf"ave(\d+)(?:-u{number})?(?:-(cluster|hull))?", text)
         if match and int(match[1]) >= 1:
-            return cls(name=name, block=int(match[1]), reduction=match[2])
+            spread = None if match[2] is None else float(match[2])
+            return cls(name=name, block=int(match[1]), reduction=match[3], max_rg_spread=spread)
         match = re.fullmatch(rf"seg-(\d+)-{number}-{number}(?:-(hull))?", text)
         if match:
             return cls(name=name, block=1, segmentation=(int(match[1]), float(match[2]), float(match[3])), reduction=match[4])
         raise ValueError(
-            f"preprocessing: unknown method {name!r}; expected ave<b>, ave<b>-cluster, ave<b>-hull, "
+            f"preprocessing: unknown method {name!r}; expected ave<b>[-u<spread>][-cluster|-hull], "
             "seg-<min>-<rg>-<rel>[-hull] or generic"
         )
 
@@ -469,7 +484,7 @@ class Preprocessing:
         if self.segmentation is not None:
             data = segment(rgb, usable, *self.segmentation)
         else:
-            data = block_average(rgb, usable, self.block)
+            data = block_average(rgb, usable, self.block, self.max_rg_spread)
         if self.reduction == "cluster":
             data = cluster_rgb(data)
         elif self.reduction == "hull":

@@ -173,6 +173,23 @@ def test_block_average_reference(block):
     np.testing.assert_allclose(images.block_average(rgb, usable, block), np.array(want).reshape(-1, 3), rtol=1e-6)
 
 
+def test_block_spread_filter_reference():
+    rgb = np.full((10, 10, 3), [0.5, 0.3, 0.2], np.float32)
+    rgb[:, 7:] = [0.2, 0.3, 0.5]  # a boundary inside the second column of 5x5 tiles
+    rgb += np.random.default_rng(6).normal(0, 0.002, rgb.shape).astype(np.float32)
+    usable = np.ones((10, 10), bool)
+    want = []
+    for ty in range(2):
+        for tx in range(2):
+            tile = rgb[ty * 5 : ty * 5 + 5, tx * 5 : tx * 5 + 5].reshape(-1, 3)
+            chroma = tile[:, :2] / tile.sum(axis=1, keepdims=True)
+            if np.hypot(*(chroma.max(axis=0) - chroma.min(axis=0))) <= 0.04:
+                want.append(tile.mean(axis=0))
+    got = images.Preprocessing.parse("ave5-u0.04").apply(rgb, usable)
+    assert len(want) == 2 and len(images.block_average(rgb, usable, 5)) == 4
+    np.testing.assert_allclose(got, np.array(want), rtol=1e-5)
+
+
 def test_cluster_rgb_reference():
     rng = np.random.default_rng(2)
     data = np.concatenate([rng.random((40, 3)), rng.random((5, 3)) * 0.001 + 0.5]).astype(np.float32)
@@ -218,6 +235,7 @@ def test_preprocessing_names():
     assert Preprocessing.parse("ave3-hull").reduction == "hull"
     assert Preprocessing.parse("generic").segmentation == (5, 0.05, 0.1)
     assert Preprocessing.parse("seg-20-0.005-0.4-hull").segmentation == (20, 0.005, 0.4)
+    assert Preprocessing.parse("ave5-u0.04-cluster") == Preprocessing("ave5-u0.04-cluster", 5, None, "cluster", 0.04)
     assert len(set(images.TABLE_4_6)) == 63
     for name in images.TABLE_4_6:
         Preprocessing.parse(name)
