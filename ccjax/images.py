@@ -173,6 +173,9 @@ def _atomic_write(path: Path, blob: bytes) -> None:
     try:
         with os.fdopen(descriptor, "wb") as handle:
             handle.write(blob)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)  # mkstemp's 0600 is for the temporary name only
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
@@ -250,7 +253,8 @@ def read_image(
 
     Arguments:
         path: the file.
-        black_level: value of a black pixel in file units (subtracted).
+        black_level: value of a black pixel in file units (subtracted). Raw files: LibRaw applies
+            the camera's own black and white levels.
         saturation: file value at which the sensor saturates (default: the format's maximum, 65535
             for 16-bit, 255 for 8-bit, 1.0 for float TIFF); pixels with any channel at or above it
             are marked clipped.
