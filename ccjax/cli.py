@@ -317,6 +317,7 @@ def _add_correct(sub) -> None:
     p.add_argument("output", help="output .png/.tif/.tiff file, or a folder when INPUT is a folder")
     p.add_argument("--method", required=True, help="estimator label (see `ccjax methods`)")
     p.add_argument("--preview", default=None, help="preview path for a single image (default: OUTPUT stem + '_preview.png')")
+    p.add_argument("--sharpening", default=None, help="3x3 sharpening transform T (text or .npy; rows = sharpened sensors) for a sharpened-diagonal map T^-1 diag(T w_C / T e) T")
     _world_arguments(p)
     _image_arguments(p)
     p.set_defaults(func=_run_correct)
@@ -344,6 +345,11 @@ def _run_correct(args) -> int:
             raise ValueError(f"output: {target} must end in .png, .tif or .tiff")
         if not target.parent.is_dir():
             raise ValueError(f"output: folder {target.parent} does not exist")
+    sharpening = None
+    if args.sharpening:
+        sharpening = np.load(args.sharpening) if args.sharpening.endswith(".npy") else np.loadtxt(args.sharpening)
+        if sharpening.shape != (3, 3) or not np.all(np.isfinite(sharpening)) or abs(np.linalg.det(sharpening)) < 1e-9:
+            raise ValueError(f"sharpening: {args.sharpening} must hold an invertible 3x3 matrix")
     _check_images(paths, args)
     world = _image_world(args)
     model = images.cached_fit(args.method, world)
@@ -354,7 +360,7 @@ def _run_correct(args) -> int:
     for path, output, preview in zip(tqdm(paths, desc="images", unit="image", disable=args.no_progress, file=sys.stderr), outputs, previews):
         image = images.read_image(path, **_read_options(args))
         estimate = images.estimate_image(model, image, args.preprocessing, dark=args.dark)
-        corrected = np.asarray(images.correct(image.rgb, estimate.illuminant, canonical))
+        corrected = np.asarray(images.correct(image.rgb, estimate.illuminant, canonical, sharpening))
         images.write_linear(output, corrected)
         images.write_preview(preview, corrected, matrix)
         rgb = np.asarray(estimate.illuminant)
