@@ -319,17 +319,20 @@ class NewSharpening:
             column, which changes neither ``E`` nor any diagonal-model algorithm).
         lambda_p, lambda_n: the weights used (``lambda_n = inf``: the norm held exactly).
         negative_fraction: share of sharpened training responses below 0.
+        negative_calibration: non-positive sharpened canonical responses and training whites.
         iterations: optimiser steps of the final run; ``converged`` its stopping reason.
         objective: final ``J`` (unit scale), with ``initial_objective`` at the identity.
         mapping: final ``E`` (unit scale, summed over training illuminants), with
             ``initial_mapping`` at the identity.
-        search: ``[(lambda_p, negative_fraction, iterations)]`` of the ``lambda_P`` search.
+        search: ``[(lambda_p, negative_fraction, negative_calibration, iterations)]`` of the
+            ``lambda_P`` search.
     """
 
     transform: np.ndarray
     lambda_p: float
     lambda_n: float
     negative_fraction: float
+    negative_calibration: int
     iterations: int
     converged: bool
     objective: float
@@ -383,7 +386,8 @@ def new_sharpening(
     Arguments:
         world: training illuminants, reflectances, canonical light.
         lambda_p: positivity weight (unit scale); default: the smallest of ``candidates`` leaving
-            under 0.1 % of the sharpened training responses negative (spec §7 A2).
+            under 0.1 % of the sharpened training responses negative and no sharpened canonical
+            response or training white non-positive (spec §7 A2).
         lambda_n: norm weight. Default ``None`` is the thesis' "very large" taken to its limit:
             ``T`` is parametrised as ``sqrt(3) U / |U|_F`` so ``N = 0`` exactly (``E`` does not see
             the scale and a huge finite weight only makes the problem stiff).
@@ -399,35 +403,44 @@ def new_sharpening(
     stats = DatabaseStatistics.of(train, canonical)
     identity = jnp.eye(3, dtype=canonical.dtype)
 
+    whites = world.train_whites
+
     def run(lp):
         lp_array = jnp.asarray(lp, canonical.dtype)
         ln = None if lambda_n is None else jnp.asarray(lambda_n, canonical.dtype)
         t, steps, converged = _minimise(stats, train, lp_array, ln, max_steps, tolerance)
-        return t, int(steps), bool(converged), float(jnp.mean(train @ t < 0))
+        negative = float(jnp.mean(train @ t < 0))
+        # Calibration data must stay positive too (spec §7 A2): a negative sharpened canonical
+        # response or training white would make gamut mapping revert on every scene.
+        calibration = int(jnp.sum(canonical @ t <= 0) + jnp.sum(whites @ t <= 0))
+        return t, int(steps), bool(converged), negative, calibration
+
+    def passes(outcome):
+        return outcome[3] < NEGATIVE_TOLERANCE and outcome[4] == 0
 
     search = []
     if lambda_p is None:
         for lp in candidates:
             outcome = run(float(lp))
-            search.append((float(lp), outcome[3], outcome[1]))
-            if outcome[3] < NEGATIVE_TOLERANCE:
+            search.append((float(lp), outcome[3], outcome[4], outcome[1]))
+            if passes(outcome):
                 break
         lambda_p = search[-1][0]
         # Refine between the last failing and the first passing candidate (log bisection).
-        if len(search) > 1 and search[-2][0] > 0 and outcome[3] < NEGATIVE_TOLERANCE:
+        if len(search) > 1 and search[-2][0] > 0 and passes(outcome):
             low, high = search[-2][0], lambda_p
             for _ in range(bisections):
                 middle = float(np.sqrt(low * high))
                 trial = run(middle)
-                search.append((middle, trial[3], trial[1]))
-                if trial[3] < NEGATIVE_TOLERANCE:
+                search.append((middle, trial[3], trial[4], trial[1]))
+                if passes(trial):
                     high, outcome = middle, trial
                 else:
                     low = middle
             lambda_p = high
-        t, steps, converged, negative = outcome
+        t, steps, converged, negative, calibration = outcome
     else:
-        t, steps, converged, negative = run(float(lambda_p))
+        t, steps, converged, negative, calibration = run(float(lambda_p))
     ln = 0.0 if lambda_n is None else float(lambda_n)
     initial = objective_terms(identity, train, canonical)
     final = objective_terms(t, train, canonical)  # at the optimiser's T, before rescaling
@@ -444,6 +457,7 @@ def new_sharpening(
         lambda_p=float(lambda_p),
         lambda_n=float("inf") if lambda_n is None else ln,
         negative_fraction=negative,
+        negative_calibration=calibration,
         iterations=steps,
         converged=converged,
         objective=total(final),
@@ -480,8 +494,8 @@ class Sharpened(Estimator):
 
     The input is sharpened (``x @ T``), ``inner`` (fitted in the sharpened world) estimates the
     sharpened white ``e#``, and the answer is ``e# @ T^-1``. Where negative values make the
-    sharpened run invalid — a non-positive sharpened training or canonical white
-    (``calibration_ok`` False; it affects every scene), a non-positive sharpened input (that
+    sharpened run invalid — a non-positive sharpened training white, canonical white or canonical
+    reflectance response (``calibration_ok`` False; every scene), a non-positive sharpened input (that
     scene), or the inner estimator failing (``ok`` False: no feasible map) — and
     ``requires_positive`` is set (gamut mapping), the scene reverts to ``plain``'s unsharpened
     answer (§5.2: no clipping, offsetting or dropping), flagged in ``reverted``.
@@ -566,11 +580,11 @@ def sharpened(
     if requires_positive is None:
         requires_positive = isinstance(estimator, str) and bool(_NEEDS_POSITIVE.search(estimator))
     sharp = sharpened_world(world, t)
-    # Calibration data that must be positive: the sharpened whites (the illumination constraint and
-    # the map w_c# / e# live in the positive octant). A few slightly negative canonical-gamut points
-    # are tolerated: the hull still contains the origin and its constraints stay valid for positive
-    # inputs and maps; a fit that refuses them makes every scene revert (below).
-    calibration_ok = jnp.all(sharp.train_whites > 0) & jnp.all(sharp.canonical_white > 0)
+    # Calibration data that must be positive (spec §7 A8): the sharpened whites (illumination
+    # constraint, w_c# / e#) and the sharpened canonical gamut, whose hull must keep the origin as
+    # its vertex in the positive octant (with negative points the feasible maps become unbounded
+    # and gamut estimates collapse to near-black lights).
+    calibration_ok = jnp.all(sharp.train_whites > 0) & jnp.all(sharp.canonical_white > 0) & jnp.all(sharp.canonical_rgb > 0)
     plain = fit(world) if plain is None else plain
     try:
         inner = fit(sharp)
@@ -915,6 +929,8 @@ def reproduce_5_1(
     info = {
         "new: lambda_P": new.lambda_p,
         "new: negative training responses": f"{new.negative_fraction:.4%}",
+        "new: non-positive sharpened canonical responses + training whites": new.negative_calibration,
+        "new: lambda_P search (lambda_P, negative fraction, calibration negatives, iterations)": new.search,
         "new: iterations": new.iterations,
         "new: E at identity -> final": f"{new.initial_mapping:.4f} -> {new.mapping:.4f}",
         "new: T": np.round(new.transform, 4).tolist(),

@@ -224,7 +224,8 @@ def test_new_method_converges_and_respects_positivity(small_world):
     assert result.converged
     assert result.mapping < result.initial_mapping
     assert result.negative_fraction < sh.NEGATIVE_TOLERANCE
-    # Gradient at the optimum (with the norm held) is tangent-free: J cannot drop by a small step.
+    canonical = np.asarray(small_world.canonical_rgb) @ result.transform
+    assert result.negative_calibration == 0 and np.all(canonical > 0)
     train = sh.database_responses(small_world, small_world.train_illuminants)
     assert np.all(np.isfinite(result.transform)) and np.linalg.cond(result.transform) < 10
     assert float(jnp.mean(train @ jnp.asarray(result.transform, jnp.float32) < 0)) < sh.NEGATIVE_TOLERANCE
