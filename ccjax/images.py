@@ -555,6 +555,7 @@ def estimate_image(model: Estimator, image: LinearImage, preprocessing=DEFAULT_P
 # Correction and output
 
 
+@jax.jit
 def correction_map(
     illuminant: Float[Array, "3"], canonical_white: Float[Array, "3"], sharpening: Float[Array, "3 3"] | None = None
 ) -> Float[Array, "3 3"]:
@@ -572,6 +573,7 @@ def correction_map(
     return matrix / jnp.maximum(jnp.sum(matrix @ grey), 1e-12)
 
 
+@jax.jit
 def diagonal_gains(illuminant: Float[Array, "3"], canonical_white: Float[Array, "3"]) -> Float[Array, "3"]:
     """The diagonal of :func:`correction_map` without sharpening (per-channel gains)."""
     gains = canonical_white / jnp.where(illuminant > 1e-12, illuminant, 1e-12)

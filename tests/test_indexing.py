@@ -19,7 +19,7 @@ def test_histogram_matches_numpy():
     keep = mask & (total > 0)
     r, g = rgb[..., 0][keep] / total[keep], rgb[..., 1][keep] / total[keep]
     want, _, _ = np.histogram2d(r, g, bins=16, range=[[0, 1], [0, 1]])
-    got = np.asarray(indexing.rg_histogram(jnp.asarray(rgb), jnp.asarray(mask)))
+    got = np.asarray(jax.jit(indexing.rg_histogram)(jnp.asarray(rgb), jnp.asarray(mask)))
     np.testing.assert_allclose(got, want / want.sum(), atol=1e-7)
 
 
@@ -28,11 +28,11 @@ def test_intersection_and_ranks_reference():
     tests = rng.random((5, 4, 4))
     models = rng.random((3, 4, 4))
     want = np.array([[np.minimum(t, m).sum() / m.sum() for m in models] for t in tests])
-    got = np.asarray(indexing.intersection(jnp.asarray(tests), jnp.asarray(models)))
+    got = np.asarray(jax.jit(indexing.intersection)(jnp.asarray(tests), jnp.asarray(models)))
     np.testing.assert_allclose(got, want, rtol=1e-6)
     truth = np.array([0, 1, 2, 0, 1])
     ranks = [1 + sum(want[q, m] > want[q, truth[q]] for m in range(3)) for q in range(5)]
-    np.testing.assert_array_equal(np.asarray(indexing.correct_ranks(jnp.asarray(want), jnp.asarray(truth))), ranks)
+    np.testing.assert_array_equal(np.asarray(jax.jit(indexing.correct_ranks)(jnp.asarray(want), jnp.asarray(truth))), ranks)
 
 
 @pytest.mark.parametrize(
