@@ -302,6 +302,7 @@ def test_per_scene_sharpening_keeps_grey_world_estimate(small_world):
     assert rows[("DB-GW", "opt")]["angular"] != pytest.approx(rows[("DB-GW", "none")]["angular"], rel=1e-4)
 
 
+@pytest.mark.slow
 def test_learning_signal_through_grey_world(small_world):
     """Through GW the angular loss has no gradient in T (its estimate is T-invariant, DESIGN.md §5)
     while the chapter-5 mapping loss has a finite, non-zero one."""
