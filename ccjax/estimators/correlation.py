@@ -55,6 +55,8 @@ remedy 1 MAP/MMSE 0.0319/0.0264 (thesis 0.030/0.025), remedy 2 0.0252/0.0215 (0.
 (1, 1) they are 0.0404/0.0334 and 0.0316/0.0279; with (0.5, 0.5) 0.0304/0.0246 and 0.0254/0.0202."""
 DEFAULT_SOFTNESS = 0.1
 """Soft binning scale in bins: weights move from one bin to the next over about +-0.3 bins."""
+DEFAULT_TEMPERATURE = 0.05
+"""Soft MAP: softmax of the log-posterior divided by this (-> MAP as it -> 0)."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -605,7 +607,7 @@ def fit_chromaticity(
     specular=None,
     mlm_width: float | None = None,
     softness: float | None = None,
-    temperature: float = 0.1,
+    temperature: float = DEFAULT_TEMPERATURE,
 ) -> ColourByCorrelation:
     """Fit 2-D C-by-C-MAP / -MMSE / -MLM (§4.5.4).
 
@@ -712,7 +714,7 @@ def fit_brightness(
     brightness_range: float = 3.0,
     n_levels: int = 101,
     softness: float | None = None,
-    temperature: float = 0.1,
+    temperature: float = DEFAULT_TEMPERATURE,
     specular_steps: int = 8,
 ) -> ColourByCorrelation3D:
     """Fit 3-D Colour by Correlation (chapter 10), ``RGB-C-by-C-MAP`` / ``-MMSE``.
