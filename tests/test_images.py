@@ -360,6 +360,21 @@ def test_mondrian_noise_and_normalisation(mondrians):
     assert 0.8 < ratio < 1.2
 
 
+def test_mondrian_highlights_are_the_light_colour():
+    labels = jnp.asarray(np.repeat(np.arange(4), 64).reshape(16, 16))
+    patch_rgb = jnp.asarray(np.random.default_rng(8).random((4, 3)), jnp.float32)
+    white = jnp.array([0.9, 1.0, 0.6], jnp.float32)
+    render = jax.jit(lambda spec, clip: scenes.render_mondrian(
+        jax.random.key(0), labels, patch_rgb, white, specular=spec, clip=clip, normalise=False)[0], static_argnums=(0, 1))
+    matte = np.asarray(render(None, None))
+    shiny = np.asarray(render(scenes.Specular(probability=1.0, max_amount=2.0), None))
+    extra = shiny - matte
+    assert extra.max() > 0.05
+    direction = extra / np.maximum(extra.sum(-1, keepdims=True), 1e-12)
+    big = extra.sum(-1) > 1e-3
+    np.testing.assert_allclose(direction[big], np.broadcast_to(np.asarray(white) / float(white.sum()), direction[big].shape), atol=1e-4)
+
+
 # ---------------------------------------------------------------------------------------------
 # Command line
 
