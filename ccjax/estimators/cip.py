@@ -66,6 +66,9 @@ _DOMAIN_MARGIN = 0.005
 # ``step / 4``, ... so the final resolution is far below the fine grid step.
 _MV_PATCH = 9
 _MV_ROUNDS = 6
+# Up to this many pixels the violation is evaluated for all pixels at once (fastest); beyond,
+# pixel by pixel in a loop (memory independent of the number of pixels).
+_VECTORISED_PIXELS = 16
 # Safety factor on the first-order cell bound of the locating pass.
 _LOCATE_SAFETY = 1.5
 
@@ -133,15 +136,16 @@ def _grid(box: Float[Array, "4"], n: int) -> Float[Array, "3 G"]:
     return jnp.stack([r, g, 1.0 - r - g])
 
 
-def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K Q 3"]) -> Float[Array, "G Q"]:
-    """``max_k x_g . vectors_kq`` for every ``g, q``, as unrolled multiply-adds and maxima.
+def _max_of_dots(x: Float[Array, "3 *G"], vectors: Float[Array, "K 3"]) -> Float[Array, "*G"]:
+    """``max_k x . vectors_k`` over the leading (component) axis of ``x``, as unrolled
+    multiply-adds and maxima.
 
     Inner products of length 3 are far faster as fused elementwise loops than as (batched) matrix
     products on CPU.
     """
     best = None
     for k in range(vectors.shape[0]):
-        dot = sum(x[c][:, None] * vectors[k, :, c][None, :] for c in range(3))
+        dot = x[0] * vectors[k, 0] + x[1] * vectors[k, 1] + x[2] * vectors[k, 2]
         best = dot if best is None else jnp.maximum(best, dot)
     return best
 
@@ -268,17 +272,33 @@ class CIP(Estimator):
         inside = jnp.all(u > 1e-6, axis=0)
         u = jnp.where(inside[None, :], u, 1.0 / 3.0)
         m = self.white[:, None] / u
-        scaled = self.surface_facets[:, None, :] * rgb[None, :, :]  # (K, P, 3): n_k * p_j
-        along = _max_of_dots(m, scaled)  # (G, P): max_k (n_k * p_j) . m
-        length = jnp.sqrt(sum((m[c][:, None] * rgb[None, :, c]) ** 2 for c in range(3)))
-        surface = jnp.where(valid[None, :], along / jnp.maximum(length, TINY), -1.0).max(axis=-1)
+
+        def worst_ratio(mapped, valid):
+            # max over the pixels of max_k n_k . (p * m) / |p * m|; mapped is (3, G, ...) = p * m.
+            along = _max_of_dots(mapped, self.surface_facets)
+            length = jnp.sqrt(jnp.sum(mapped * mapped, axis=0))
+            return jnp.where(valid, along / jnp.maximum(length, TINY), -1.0)
+
+        if rgb.shape[0] <= _VECTORISED_PIXELS:
+            # Few pixels: all at once, one fused loop over (direction, pixel).
+            surface = worst_ratio(m[:, :, None] * rgb.T[:, None, :], valid[None, :]).max(axis=-1)
+        else:
+            # Many pixels: one at a time, so memory stays O(G) per scene whatever their number.
+            def pixel(j, worst):
+                return jnp.maximum(worst, worst_ratio(m * rgb[j][:, None], valid[j]))
+
+            surface = jax.lax.fori_loop(0, rgb.shape[0], pixel, jnp.full(u.shape[1:], -1.0, u.dtype))
         x = u if self.illumination == "exact" else m
         x = x / jnp.sqrt(jnp.sum(x * x, axis=0))
-        illuminant = _max_of_dots(x, self.illuminant_facets[:, None, :])[:, 0]
+        illuminant = _max_of_dots(x, self.illuminant_facets)
         return jnp.where(inside, jnp.maximum(surface, illuminant), _OUTSIDE)
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
-        valid = mask & (jnp.sum(rgb, axis=-1) > TINY)
+        # Perspective constraints ignore each pixel's brightness: normalise it away so that neither
+        # very bright nor very dark data over- or underflows.
+        total = jnp.sum(rgb, axis=-1, keepdims=True)
+        valid = mask & (total[:, 0] > 0)
+        rgb = jnp.where(valid[:, None], rgb / jnp.where(valid[:, None], total, 1.0), 0.0)
         has_data = jnp.any(valid)
         levels = jnp.concatenate([jnp.zeros(1), RELAX_FIRST * 2.0 ** jnp.arange(RELAX_STEPS)]).astype(rgb.dtype)
 
@@ -327,15 +347,18 @@ class CIP(Estimator):
         dr, dg = jnp.meshgrid(offsets, offsets, indexing="ij")
         patch = jnp.stack([dr.ravel(), dg.ravel()])
         on_edge = jnp.max(jnp.abs(patch), axis=0) == 1.0
-        for _ in range(_MV_ROUNDS):
+
+        def round_(_, state):
+            best, step = state
             rg = best[:2, None] + patch * step[:, None]
             candidates = jnp.concatenate([rg, 1.0 - rg.sum(axis=0, keepdims=True)])
             ok = self.violation(candidates, rgb, valid) <= level
             # The patch centre is the current best, so a round never loses feasibility.
             index = _argmax(jnp.where(ok, self._log_area(candidates), -jnp.inf))
-            best = candidates[:, index]
-            step = jnp.where(on_edge[index], step, step / 4.0)
-        return best
+            return candidates[:, index], jnp.where(on_edge[index], step, step / 4.0)
+
+        # A loop (not unrolled) so the violation kernel is compiled once for all rounds.
+        return jax.lax.fori_loop(0, _MV_ROUNDS, round_, (best, step))[0]
 
     def _average(self, u, coverage) -> Float[Array, "3"]:
         """AVE (2-D map-space centroid) or ICA (solid-angle centroid of 3-D map directions).
