@@ -60,6 +60,13 @@ def rg_bin(rgb) -> tuple[int, int]:
     return min(int(math.floor(r * BINS)), BINS - 1), min(int(math.floor(g * BINS)), BINS - 1)
 
 
+def rg_bins(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rg_bin` for many colours at once."""
+    rg = rgb[:, :2] / rgb.sum(axis=1, keepdims=True)
+    bins = np.minimum(np.floor(rg * BINS).astype(int), BINS - 1)
+    return bins[:, 0], bins[:, 1]
+
+
 def _normalised_log(counts: np.ndarray, floor: float) -> np.ndarray:
     p = counts / counts.sum()
     return np.log(np.maximum(p, floor * p.max()))
@@ -70,9 +77,8 @@ def chromaticity_log_probability(reflectances, lights, sensors, sigma=1.0, floor
     out = []
     for light in lights:
         counts = np.zeros((BINS, BINS))
-        for rgb in responses(reflectances, light, sensors):
-            i, j = rg_bin(rgb)
-            counts[i, j] += 1.0
+        i, j = rg_bins(responses(reflectances, light, sensors))
+        np.add.at(counts, (i, j), 1.0)
         counts = smooth_axis(smooth_axis(counts, 0, sigma), 1, sigma)
         out.append(_normalised_log(counts, floor))
     return np.stack(out)
@@ -138,11 +144,12 @@ def brightness_log_probability(
             for step in range(8):
                 s = (step + 0.5) / 8 * amount
                 entries += [(rgb + s * white, probability / 8) for rgb, _ in matte]
-        for rgb, weight in entries:
-            level = int(math.floor(rgb.sum() / white.sum() * l_bins))
-            assert level < l_total, "training colour brighter than the modelled L range"
-            i, j = rg_bin(rgb)
-            counts[i, j, level] += weight
+        colours = np.stack([rgb for rgb, _ in entries])
+        weights = np.array([weight for _, weight in entries])
+        levels = np.floor(colours.sum(axis=1) / white.sum() * l_bins).astype(int)
+        assert levels.max() < l_total, "training colour brighter than the modelled L range"
+        i, j = rg_bins(colours)
+        np.add.at(counts, (i, j, levels), weights)
         for axis, s in ((0, sigma), (1, sigma), (2, sigma_l)):
             counts = smooth_axis(counts, axis, s)
         out.append(_normalised_log(counts, floor))

@@ -245,22 +245,22 @@ def test_soft_gradients(barnard_world, batch, label):
 
 @pytest.fixture(scope="module")
 def models(barnard_world):
-    labels = ["C-by-C-MMSE", "C-by-C-01", "RGB-C-by-C-MMSE", "RGB-C-by-C-MAP-counts"]
+    labels = ["C-by-C-MMSE", "C-by-C-01", "RGB-C-by-C-MMSE"]
     return {label: registry.fit(label, barnard_world) for label in labels}
 
 
-@settings(max_examples=6, deadline=None)
+@settings(max_examples=4, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_permutation_and_padding_invariance(models, batch, seed):
-    """Reordering the surfaces and appending masked ones changes nothing (fixed shapes 8 and 12)."""
+    """Reordering each scene's surfaces and appending masked ones changes nothing (every example
+    reuses the same two compiled shapes, 8 and 12 surfaces)."""
     rng = np.random.default_rng(seed)
-    k = int(rng.integers(N_SCENES))
-    rgb, mask = batch.rgb[k], batch.mask[k]
-    order = rng.permutation(8)
-    padded = jnp.concatenate([rgb[order], jnp.asarray(rng.uniform(0, 1, (4, 3)), jnp.float32)])
-    padded_mask = jnp.concatenate([mask[order], jnp.zeros(4, bool)])
+    order = np.argsort(rng.random((N_SCENES, 8)), axis=1)
+    shuffled = np.take_along_axis(np.asarray(batch.rgb), order[..., None], axis=1)
+    padded = jnp.concatenate([jnp.asarray(shuffled), jnp.asarray(rng.uniform(0, 1, (N_SCENES, 4, 3)), jnp.float32)], axis=1)
+    padded_mask = jnp.concatenate([batch.mask, jnp.zeros((N_SCENES, 4), bool)], axis=1)
     for label, model in models.items():
-        a, b = run(model, rgb, mask).illuminant, run(model, padded, padded_mask).illuminant
+        a, b = run(model, batch.rgb, batch.mask).illuminant, run(model, padded, padded_mask).illuminant
         np.testing.assert_allclose(a, b, rtol=1e-5, err_msg=label)
 
 
@@ -276,11 +276,13 @@ def test_scale(models, batch):
 
 def test_degenerate_scenes_fall_back(models, barnard_world):
     fallback = np.asarray(barnard_world.train_whites).mean(axis=0)
-    for rgb, mask in [(jnp.ones((8, 3)), jnp.zeros(8, bool)), (jnp.zeros((8, 3)), jnp.ones(8, bool))]:
-        for label, model in models.items():
-            out = run(model, rgb, mask)
-            assert not bool(out.ok), label
-            np.testing.assert_allclose(out.illuminant, fallback, rtol=1e-6, err_msg=label)
+    # All surfaces masked (first half of the batch) or all black (second half).
+    rgb = jnp.concatenate([jnp.ones((N_SCENES // 2, 8, 3)), jnp.zeros((N_SCENES // 2, 8, 3))])
+    mask = jnp.concatenate([jnp.zeros((N_SCENES // 2, 8), bool), jnp.ones((N_SCENES // 2, 8), bool)])
+    for label, model in models.items():
+        out = run(model, rgb, mask)
+        assert not np.any(out.ok), label
+        np.testing.assert_allclose(out.illuminant, np.broadcast_to(fallback, (N_SCENES, 3)), rtol=1e-6, err_msg=label)
 
 
 def test_brightness_estimate_near_truth(models, batch):
@@ -307,14 +309,12 @@ def test_labels(barnard_world):
 
 
 def test_mlm_width_minimises_mean_error(barnard_world):
-    """The width search (§4.5.4) picks the smallest mean absolute (r,g) error, and the fitted MLM
-    model uses the searched width."""
-    model = correlation.fit_chromaticity(barnard_world, "MMSE")
-    tuned = correlation.tune_mlm_width(barnard_world, model, widths=(0.5, 2.0, 8.0), n_scenes=200)
-    assert tuned["best"] == tuned["widths"][np.argmin(tuned["mean_error"])]
-    assert np.all(np.isfinite(tuned["mean_error"]))
-    searched = correlation.tune_mlm_width(barnard_world, model)
-    assert registry.fit("C-by-C-MLM", barnard_world).mlm_width == searched["best"]
+    """The width search (§4.5.4) picks the least mean absolute (r,g) error on its validation scenes,
+    and C-by-C-MLM uses the searched width."""
+    width = registry.fit("C-by-C-MLM", barnard_world).mlm_width
+    search = correlation.mlm_width_search(barnard_world)  # cached by the fit
+    assert width == search["best"] == search["widths"][np.argmin(search["mean_error"])]
+    assert search["mean_error"].shape == (len(correlation.MLM_WIDTHS),) and np.all(np.isfinite(search["mean_error"]))
 
 
 def test_cache_round_trip(barnard_world, tmp_path, monkeypatch):

@@ -47,7 +47,7 @@ from ccjax.world import World
 RG_BINS = 50
 """(r,g) divisions: bins of width 0.02, as the thesis' C-by-C and neural net (§4.5.4)."""
 N_RG_CELLS = RG_BINS * (RG_BINS + 1) // 2  # bins (i, j) with i + j <= 49
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2
 BRIGHTNESS_SIGMA = (0.75, 0.5)
 """Smoothing of the 3-D matrix in bins, (r,g) and L. The thesis gives none (spec ch08-12 A13); these
 values reproduce Tables 10.1 and 10.2 best on World.barnard1999 (8 surfaces, 1000 scenes, rg RMS):
@@ -126,11 +126,11 @@ def training_responses(world: World, specular: Specular | None = None, steps: in
 def _log_of_smoothed(counts: np.ndarray, sigma: tuple[float, ...], floor: float) -> np.ndarray:
     """Per illuminant (axis 0): Gaussian smoothing (``sigma`` in bins per remaining axis), normalise
     to probabilities, floor at ``floor`` x the illuminant's largest probability, log (§4.5.4)."""
-    counts = np.asarray(counts, np.float64)
+    counts = np.asarray(counts, np.float32)  # float32: the 3-D matrices are tens of millions of cells
     if any(s > 0 for s in sigma):
-        counts = gaussian_filter(counts, sigma=(0.0, *sigma), mode="constant", truncate=4.0)
+        counts = gaussian_filter(counts, sigma=(0.0, *sigma), mode="constant", truncate=4.0, output=np.float32)
     flat = counts.reshape(counts.shape[0], -1)
-    probability = flat / flat.sum(axis=1, keepdims=True)
+    probability = flat / flat.sum(axis=1, keepdims=True, dtype=np.float64).astype(np.float32)
     lowest = floor * probability.max(axis=1, keepdims=True)
     return np.log(np.maximum(probability, lowest))
 
@@ -641,12 +641,23 @@ def fit_chromaticity(
     )
     if selector == "MLM":
         if mlm_width is None:
-            options = {"sigma": sigma, "floor": floor, "specular": repr(specular)}
-            tuned = cached("mlm-width", world, options, lambda: tune_mlm_width(world, model, specular=specular))
-            mlm_width = float(tuned["best"])
+            mlm_width = float(mlm_width_search(world, sigma=sigma, floor=floor, specular=specular)["best"])
         mlm_width = _check_positive("mlm_width", mlm_width)
         model = dataclasses.replace(model, mlm_mask=mlm_mask(model.illuminant_rg, mlm_width), mlm_width=mlm_width)
     return model
+
+
+def mlm_width_search(world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular=None) -> dict[str, np.ndarray]:
+    """The MLM mask-width search of :func:`tune_mlm_width` for the MMSE/MAP matrix with these
+    options, cached on disk; ``["best"]`` is the width C-by-C-MLM uses."""
+    specular = _resolve_specular(specular)
+    options = {"sigma": sigma, "floor": floor, "specular": repr(specular)}
+
+    def compute():
+        model = fit_chromaticity(world, "MMSE", sigma=sigma, floor=floor, specular=specular)
+        return tune_mlm_width(world, model, specular=specular)
+
+    return cached("mlm-width", world, options, compute)
 
 
 MLM_WIDTHS = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0)
