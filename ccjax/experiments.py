@@ -292,6 +292,8 @@ PROTOCOLS: dict[str, list[Condition]] = {
         Condition(8, {f"angular@{level}": "angular", f"rg@{level}": "rg"}, specular=True, clip=level / 255.0)
         for level in (400, 300, 250)
     ],
+    # Table 6.1 (§6.3): matte scenes of 4, 8 and 16 surfaces, rg only.
+    "6.1": [Condition(n, {f"rg@{n}": "rg"}) for n in (4, 8, 16)],
     # Table 10.1 (§10.3): 8 surfaces, matte and specular worlds (rg only; fluorescent column later).
     "10.1": [Condition(8, {"rg@matte": "rg"}), Condition(8, {"rg@specular": "rg"}, specular=True)],
     # Table 10.2 (§10.3): 8 matte surfaces.

@@ -1,0 +1,49 @@
+"""3-D gamut mapping: CRULE / ECRULE (and ND) with MV, AVE, ICA and SCWIA-N (Barnard 1999 §2.3.4,
+§4.5.3, ch. 6), computed by illuminant-direction integration (DESIGN.md §4).
+
+Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``.
+"""
+
+from ccjax.estimators.gamut.geometry import Facets, cone_planes, gamut_facets, nd_points
+from ccjax.estimators.gamut.kernel import Grid, GridOptions, evaluate
+from ccjax.estimators.gamut.model import GamutMapping, GamutModel, estimate_all, fit
+from ccjax.estimators.gamut.selectors import GamutEstimate, select
+
+__all__ = [
+    "Facets",
+    "GamutEstimate",
+    "GamutMapping",
+    "GamutModel",
+    "Grid",
+    "GridOptions",
+    "cone_planes",
+    "estimate_all",
+    "evaluate",
+    "fit",
+    "gamut_facets",
+    "nd_points",
+    "select",
+]
+
+
+# ---------------------------------------------------------------------------------------------
+# labels (Table 4.1, Table 6.1; grammar of spec ch08-12 §0)
+
+from ccjax.estimators.registry import register as _register
+
+
+def _build(world, match, **options):
+    extension = "ND" if match["nd"] else None
+    selector, power = match["selector"], 12.0
+    if selector.startswith("SCWIA"):
+        selector, power = "SCWIA", float(match["power"])
+    if selector == "ICA" and match["base"] != "ECRULE":
+        raise ValueError("method: ICA is the illumination-constrained average; CRULE has none (use CRULE-AVE)")
+    return GamutMapping(fit(world, constraint=match["base"], extension=extension, **options), selector, power)
+
+
+_register(
+    r"(?P<nd>ND-)?(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))",
+    "ND-ECRULE-SCWIA-12",
+    "3-D gamut mapping [ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) by direction integration (§4.5.3, ch. 6)",
+)(_build)

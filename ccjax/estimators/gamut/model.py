@@ -1,0 +1,159 @@
+"""Fitting gamut-mapping models and the Estimator that runs them (Barnard 1999 §4.5.3, ch. 6).
+
+``fit(world, constraint=..., extension=...)`` computes, once, with Qhull: the canonical gamut
+(or its ND extension) as fixed-size facet arrays, the cone of the training illuminants
+(ECRULE's illumination constraint) and the cone of their map directions (its convex
+approximation), and the domain of illuminant directions the locating stage starts from. The per-scene work is
+:func:`~ccjax.estimators.gamut.kernel.evaluate` followed by a selector.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+from ccjax.estimators.base import Estimator
+from ccjax.estimators.gamut import geometry
+from ccjax.estimators.gamut.kernel import GridOptions, evaluate
+from ccjax.estimators.gamut.selectors import SELECTORS, GamutEstimate, select
+from ccjax.world import World
+
+CONSTRAINTS = ("CRULE", "ECRULE")
+EXTENSIONS = (None, "ND")
+# ECRULE's domain of directions extends this far beyond its illumination constraints, so relaxed
+# (widened) constraints still find directions.
+_ECRULE_MARGIN = 0.06
+
+
+class GamutModel(eqx.Module):
+    """A fitted 3-D gamut-mapping model (all arrays are PyTree leaves, so gradients reach them).
+
+    Attributes:
+        white: ``(3,)`` canonical white ``w_C``.
+        origin_normals: ``(K0, 3)`` outward normals of the canonical gamut's facets through the origin.
+        top_normals, top_offsets: ``(K1, 3)``, ``(K1,)`` the other facets, ``n . x <= c``.
+        illuminant_planes: ``(L, 3)`` unit face normals of the training-illuminant cone.
+        map_planes: ``(Lc, 3)`` unit face normals of the cone of their map directions ``w_C / e``.
+        domain: ``(2, 2)`` lower and upper (r,g) corners of the box the locating stage starts
+            from (CRULE: the whole chromaticity triangle; ECRULE: the illumination constraints'
+            box with a margin).
+        fallback: ``(3,)`` returned (with ``ok=False``) when no solution exists at any level.
+        constraint, extension, options: static configuration.
+    """
+
+    white: Float[Array, "3"]
+    origin_normals: Float[Array, "K0 3"]
+    top_normals: Float[Array, "K1 3"]
+    top_offsets: Float[Array, "K1"]
+    illuminant_planes: Float[Array, "L 3"]
+    map_planes: Float[Array, "Lc 3"]
+    domain: Float[Array, "2 2"]
+    fallback: Float[Array, "3"]
+    constraint: str = eqx.field(static=True)
+    extension: str | None = eqx.field(static=True)
+    options: GridOptions = eqx.field(static=True)
+
+
+def canonical_points(world: World, extension: str | None) -> np.ndarray:
+    """The points whose hull (with the origin) is the canonical gamut: the database under the
+    canonical light, or for ND also every training illuminant's white-balanced database (§6.1)."""
+    if extension is None:
+        return np.asarray(world.canonical_rgb, np.float64)
+    return geometry.nd_points(
+        np.asarray(world.reflectances), np.asarray(world.camera.sensors), np.asarray(world.train_illuminants), np.asarray(world.canonical)
+    )
+
+
+def fit(
+    world: World,
+    *,
+    constraint: str = "ECRULE",
+    extension: str | None = None,
+    options: GridOptions | None = None,
+) -> GamutModel:
+    """Fit a gamut-mapping model to a world.
+
+    Arguments:
+        world: supplies the reflectances, canonical light, training illuminants and camera.
+        constraint: ``"CRULE"`` (surface constraints only, Forsyth) or ``"ECRULE"`` (plus the
+            training-illuminant constraint, Finlayson).
+        extension: ``None`` or ``"ND"`` (canonical gamut extended for diagonal-model failure, §6.1).
+        options: grid sizes and budgets (:class:`GridOptions`).
+
+    Returns:
+        A :class:`GamutModel` (float32 arrays).
+    """
+    if constraint not in CONSTRAINTS:
+        raise ValueError(f"constraint: expected one of {CONSTRAINTS}, got {constraint!r}")
+    if extension not in EXTENSIONS:
+        raise ValueError(f"extension: expected one of {EXTENSIONS}, got {extension!r}")
+    options = options or GridOptions()
+    if not isinstance(options, GridOptions):
+        raise ValueError(f"options: expected a GridOptions, got {type(options).__name__}")
+    facets = geometry.gamut_facets(canonical_points(world, extension))
+    white = np.asarray(world.canonical_white, np.float64)
+    whites = np.asarray(world.train_whites, np.float64)
+    illuminant_planes = geometry.cone_planes(whites)
+    map_planes = geometry.cone_planes(white / whites)
+    if constraint == "ECRULE":
+        chroma = whites[:, :2] / whites.sum(axis=1, keepdims=True)
+        pr0, pr1, pg0, pg1 = geometry.preimage_box(map_planes, white)
+        lo = np.minimum(chroma.min(axis=0), [pr0, pg0]) - _ECRULE_MARGIN
+        hi = np.maximum(chroma.max(axis=0), [pr1, pg1]) + _ECRULE_MARGIN
+        domain = np.stack([np.maximum(lo, 0.0), np.minimum(hi, 1.0)])
+    else:
+        domain = np.array([[0.0, 0.0], [1.0, 1.0]])
+    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    return GamutModel(
+        white=f32(white),
+        origin_normals=f32(facets.origin_normals),
+        top_normals=f32(facets.top_normals),
+        top_offsets=f32(facets.top_offsets),
+        illuminant_planes=f32(illuminant_planes),
+        map_planes=f32(map_planes),
+        domain=f32(domain),
+        fallback=f32(whites.mean(axis=0)),
+        constraint=constraint,
+        extension=extension,
+        options=options,
+    )
+
+
+class GamutMapping(Estimator):
+    """A gamut-mapping estimator: one model and one selector (Table 4.1, §6.2).
+
+    ``GamutMapping(model, "SCWIA", 12)`` is ECRULE-SCWIA-12 when ``model`` is an ECRULE model.
+    Call it on one scene, ``(rgb (P, 3), mask (P,)) -> GamutEstimate``; vmap for batches.
+    """
+
+    model: GamutModel
+    selector: str = eqx.field(static=True)
+    power: float = eqx.field(static=True, default=12.0)
+    estimates_brightness = True
+
+    def __check_init__(self):
+        if self.selector not in SELECTORS:
+            raise ValueError(f"selector: expected one of {SELECTORS}, got {self.selector!r}")
+        if self.selector == "ICA" and self.model.constraint != "ECRULE":
+            raise ValueError("selector: ICA is the illumination-constrained average; it needs constraint='ECRULE'")
+        if self.selector == "SCWIA" and not self.power > 0:
+            raise ValueError(f"power: SCWIA's N must be positive, got {self.power!r}")
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> GamutEstimate:
+        return select(self.model, evaluate(self.model, rgb, mask), self.selector, self.power)
+
+
+def estimate_all(model: GamutModel, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"], powers=(3, 6, 9, 12, 18, 24)) -> dict[str, GamutEstimate]:
+    """Every selector of a model from ONE evaluation of the direction grid.
+
+    Returns:
+        ``{"MV": ..., "AVE": ..., "ICA": ... (ECRULE only), "SCWIA-N": ...}``.
+    """
+    grid = evaluate(model, rgb, mask)
+    selectors = ["MV", "AVE"] + (["ICA"] if model.constraint == "ECRULE" else [])
+    out = {name: select(model, grid, name) for name in selectors}
+    for n in powers:
+        out[f"SCWIA-{n}"] = select(model, grid, "SCWIA", float(n))
+    return out

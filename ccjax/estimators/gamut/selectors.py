@@ -1,0 +1,148 @@
+"""Solution selection from the fine direction grid (Barnard 1999 §4.5.3, §6.2; spec ch08-12 §1.8).
+
+Every selector reads the same per-direction quantities (``T(u)`` and the violations) and
+differs only in the mask and the weights:
+
+* MV: the feasible ``u`` maximising ``T^3 / (r g b)`` (the product ``d_r d_g d_b`` of the map on
+  the ray's far end), refined by a pattern search below the grid step; ``e = u / T``.
+* AVE / ICA: the centroid of the feasible set in map space, volume weights ``T^3 / (rgb)^2`` and
+  centroid weights ``(3/4) m(u) T^4 / (rgb)^2``; ``e = w_C / centroid``.
+* SCWIA-N: the average of feasible ``(r, g)`` with weights
+  ``(T^3 prod(w_C) / (rgb))^(N/3) dOmega``, ``dOmega = dr dg / |u|^3``, in the log domain.
+  Brightness (not reported by the thesis) is the same average of ``1/T`` (spec ch08-12 §1.8 default).
+
+Masks: CRULE uses surface feasibility ``V_S <= eps``; ECRULE's MV, ICA and SCWIA add the exact
+illumination constraint ``V_I <= eps``; ECRULE-AVE adds its convex approximation ``V_C <= eps``.
+``eps`` is the first relaxation level at which the mask is non-empty (DESIGN.md §4).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from ccjax.estimators.base import Estimate, with_fallback
+from ccjax.estimators.gamut.kernel import _BIG, Grid, directions, inverse_extent, relaxation_level, violations
+
+SELECTORS = ("MV", "AVE", "ICA", "SCWIA")
+
+
+class GamutEstimate(Estimate):
+    """A gamut-mapping estimate with its diagnostics.
+
+    Attributes:
+        relaxation: the level ``eps`` at which feasible directions were found (0: none needed).
+        exact: the observation reduction (large scenes) kept every observation it selected.
+    """
+
+    relaxation: Float[Array, "..."]
+    exact: Bool[Array, "..."]
+
+
+def mask_violation(constraint: str, selector: str, surface, illuminant, cone):
+    """The violation whose sub-level set is the selector's feasible set (see module docstring)."""
+    if constraint == "CRULE":
+        return surface
+    if selector == "AVE":
+        return jnp.maximum(surface, cone)
+    return jnp.maximum(surface, illuminant)
+
+
+def _log_volume(log_t, u):
+    """``log(T^3 / (r g b))``: log of the coordinate product of the map ``T m(u)`` over prod(w_C)."""
+    return 3.0 * log_t - jnp.sum(jnp.log(u), axis=-1)
+
+
+def _masked_softmax(log_weight, mask):
+    log_weight = jnp.where(mask, log_weight, -jnp.inf)
+    top = jnp.max(log_weight)
+    weight = jnp.where(mask, jnp.exp(log_weight - jnp.where(jnp.isfinite(top), top, 0.0)), 0.0)
+    return weight / jnp.maximum(jnp.sum(weight), 1e-30)
+
+
+def _refine_max_volume(model, grid: Grid, selector: str, level, start):
+    """Pattern search for MV below the grid step.
+
+    A 5x5 stencil around the current point: move to its best point and double the step when it
+    improves, else halve the step. The maximum is often a vertex of the feasible polytope, a
+    kink of ``T(u)`` where the objective falls off along ridges; moving with an expanding step
+    follows such ridges where a fixed shrinking search stalls.
+    """
+    unit = jnp.arange(-2.0, 3.0, dtype=grid.rg.dtype)
+    su, sg = jnp.meshgrid(unit, unit, indexing="ij")
+    stencil = jnp.stack([su.ravel(), sg.ravel()], axis=1)
+
+    def objective(rg):
+        u, v, valid = directions(rg)
+        inverse = inverse_extent(v, grid.observations)
+        _, surface, illuminant, cone = violations(model, v, valid, grid.observations)
+        violation = mask_violation(model.constraint, selector, surface, illuminant, cone)
+        feasible = valid & (violation <= level) & (inverse > 0)
+        value = _log_volume(-jnp.log(jnp.where(feasible, inverse, 1.0)), u)
+        return jnp.where(feasible, value, -jnp.inf), inverse
+
+    def step(carry, _):
+        centre, value, half = carry
+        candidates = centre + stencil * half
+        values, _ = objective(candidates)
+        best = jnp.argmax(values)
+        better = values[best] > value
+        centre = jnp.where(better, candidates[best], centre)
+        return (centre, jnp.maximum(values[best], value), jnp.where(better, 2.0 * half, 0.5 * half)), None
+
+    value, _ = objective(start[None])
+    (centre, _, _), _ = jax.lax.scan(step, (start, value[0], grid.step / 2), None, length=model.options.refine_steps)
+    _, inverse = objective(centre[None])
+    u, _, _ = directions(centre[None])
+    return u[0] * inverse[0]
+
+
+def select(model, grid: Grid, selector: str, power: float = 12.0) -> GamutEstimate:
+    """Apply one selector to a scene's fine grid.
+
+    Arguments:
+        model: the fitted :class:`~ccjax.estimators.gamut.GamutModel`.
+        grid: from :func:`~ccjax.estimators.gamut.kernel.evaluate`.
+        selector: ``"MV"``, ``"AVE"``, ``"ICA"`` (ECRULE) or ``"SCWIA"``.
+        power: SCWIA's ``N``.
+
+    Returns:
+        The estimate; ``ok`` is False when constraints were relaxed or no level had a solution
+        (then the average training illuminant is returned).
+    """
+    white = model.white.astype(grid.rg.dtype)
+    bounded = grid.valid & (grid.inverse_extent > 0)
+    violation = jnp.where(bounded, mask_violation(model.constraint, selector, grid.surface, grid.illuminant, grid.cone), _BIG)
+    level, failed = relaxation_level(jnp.min(violation), model.options)
+    feasible = violation <= level
+    u, v, _ = directions(grid.rg)
+    log_t = -jnp.log(jnp.where(bounded, grid.inverse_extent, 1.0))
+
+    if selector == "MV":
+        score = jnp.where(feasible, _log_volume(log_t, u), -jnp.inf)
+        best = jnp.argmax(score)
+        illuminant = _refine_max_volume(model, grid, selector, level, grid.rg[best])
+    elif selector in ("AVE", "ICA"):
+        weight = _masked_softmax(3.0 * log_t - 2.0 * jnp.sum(jnp.log(u), axis=-1), feasible)
+        extent = jnp.exp(log_t)
+        centroid = 0.75 * jnp.sum((weight * extent)[:, None] * (white * v), axis=0)
+        illuminant = white / jnp.maximum(centroid, 1e-30)
+    elif selector == "SCWIA":
+        log_solid_angle = -1.5 * jnp.log(jnp.sum(u * u, axis=-1))
+        log_weight = power / 3.0 * (_log_volume(log_t, u) + jnp.sum(jnp.log(white))) + log_solid_angle
+        weight = _masked_softmax(log_weight, feasible)
+        chroma = jnp.sum(weight[:, None] * u, axis=0)
+        brightness = jnp.sum(weight * jnp.where(bounded, grid.inverse_extent, 0.0))
+        illuminant = chroma * brightness
+    else:
+        raise ValueError(f"selector: expected one of {SELECTORS}, got {selector!r}")
+
+    found = grid.usable & ~failed & jnp.any(feasible)
+    estimate = with_fallback(illuminant, found, model.fallback.astype(grid.rg.dtype))
+    return GamutEstimate(
+        illuminant=estimate.illuminant,
+        ok=estimate.ok & (level == 0),
+        relaxation=jnp.where(found, level, jnp.inf).astype(grid.rg.dtype),
+        exact=grid.exact,
+    )
