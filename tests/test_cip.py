@@ -206,17 +206,6 @@ def test_scale_permutation_and_padding_invariance(run, pool, selector):
         np.testing.assert_allclose(other, base, atol=2e-4)
 
 
-def test_pixel_loop_matches_vectorised_path(run, models, pool):
-    # More than cip._VECTORISED_PIXELS pixels switches the violation to a pixel loop; padding
-    # the same scenes to 20 pixels must not change the answer.
-    assert cip._VECTORISED_PIXELS < 20
-    rgb, mask = _scenes(pool, BATCH, PAD, PAD, seed=0)
-    vectorised, _ = run("ICA", rgb, mask)
-    wide_rgb, wide_mask = _padded(rgb, PAD, 20)
-    looped, _ = batch_runner(models["ICA"], 20)(wide_rgb, wide_mask)
-    np.testing.assert_allclose(looped / looped.sum(1, keepdims=True), vectorised / vectorised.sum(1, keepdims=True), atol=1e-5)
-
-
 def test_mv_is_bluest_and_ica_least_biased(run, pool):
     # The thesis' finding (§4.7, Fig. 4.5): MV picks the bluest feasible light (largest 2-D map
     # area), AVE a little less, ICA is unbiased. Mean signed error in b = B/(R+G+B) over scenes.

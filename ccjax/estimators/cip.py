@@ -66,9 +66,6 @@ _DOMAIN_MARGIN = 0.005
 # ``step / 4``, ... so the final resolution is far below the fine grid step.
 _MV_PATCH = 9
 _MV_ROUNDS = 6
-# Up to this many pixels the violation is evaluated for all pixels at once (fastest); beyond,
-# pixel by pixel in a loop (memory independent of the number of pixels).
-_VECTORISED_PIXELS = 16
 # Safety factor on the first-order cell bound of the locating pass.
 _LOCATE_SAFETY = 1.5
 
@@ -136,15 +133,15 @@ def _grid(box: Float[Array, "4"], n: int) -> Float[Array, "3 G"]:
     return jnp.stack([r, g, 1.0 - r - g])
 
 
-def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K Q 3"]) -> Float[Array, "G Q"]:
-    """``max_k x_g . vectors_kq`` for every ``g, q``, as unrolled multiply-adds and maxima.
+def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K 3"]) -> Float[Array, "G"]:
+    """``max_k x_g . vectors_k`` for every ``g``, as unrolled multiply-adds and maxima.
 
     Inner products of length 3 are far faster as fused elementwise loops than as (batched) matrix
     products on CPU.
     """
     best = None
     for k in range(vectors.shape[0]):
-        dot = sum(x[c][:, None] * vectors[k, :, c][None, :] for c in range(3))
+        dot = x[0] * vectors[k, 0] + x[1] * vectors[k, 1] + x[2] * vectors[k, 2]
         best = dot if best is None else jnp.maximum(best, dot)
     return best
 
@@ -272,28 +269,20 @@ class CIP(Estimator):
         u = jnp.where(inside[None, :], u, 1.0 / 3.0)
         m = self.white[:, None] / u
 
-        scaled = self.surface_facets[:, None, :] * rgb[None, :, :]  # (K, P, 3): n_k * p_j
+        scaled = self.surface_facets[None, :, :] * rgb[:, None, :]  # (P, K, 3): n_k * p_j
 
-        def worst_ratio(scaled, rgb, valid):
-            # max over pixels of max_k (n_k * p) . m / |p * m|, for pixels (Q, 3).
-            along = _max_of_dots(m, scaled)
-            length = jnp.sqrt(sum((m[c][:, None] * rgb[None, :, c]) ** 2 for c in range(3)))
-            return jnp.where(valid[None, :], along / jnp.maximum(length, TINY), -1.0).max(axis=-1)
+        # One pixel at a time: memory stays O(G) per scene whatever the number of pixels, and each
+        # step is one fused elementwise loop over the directions (measured as fast as evaluating
+        # all pixels at once, already for 8 pixels).
+        def pixel(j, worst):
+            along = _max_of_dots(m, scaled[j])  # max_k (n_k * p_j) . m
+            length = jnp.sqrt(sum((m[c] * rgb[j, c]) ** 2 for c in range(3)))  # |p_j * m|
+            return jnp.where(valid[j], jnp.maximum(worst, along / jnp.maximum(length, TINY)), worst)
 
-        if rgb.shape[0] <= _VECTORISED_PIXELS:
-            # Few pixels: all at once, one fused loop over (direction, pixel).
-            surface = worst_ratio(scaled, rgb, valid)
-        else:
-            # Many pixels: one at a time, so memory stays O(G) per scene whatever their number.
-            def pixel(j, worst):
-                one = jax.lax.dynamic_slice_in_dim(scaled, j, 1, axis=1)
-                ratio = worst_ratio(one, jax.lax.dynamic_slice_in_dim(rgb, j, 1), jax.lax.dynamic_slice_in_dim(valid, j, 1))
-                return jnp.maximum(worst, ratio)
-
-            surface = jax.lax.fori_loop(0, rgb.shape[0], pixel, jnp.full(u.shape[1:], -1.0, u.dtype))
+        surface = jax.lax.fori_loop(0, rgb.shape[0], pixel, jnp.full(u.shape[1:], -1.0, u.dtype))
         x = u if self.illumination == "exact" else m
         x = x / jnp.sqrt(jnp.sum(x * x, axis=0))
-        illuminant = _max_of_dots(x, self.illuminant_facets[:, None, :])[:, 0]
+        illuminant = _max_of_dots(x, self.illuminant_facets)
         return jnp.where(inside, jnp.maximum(surface, illuminant), _OUTSIDE)
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
