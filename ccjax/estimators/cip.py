@@ -62,8 +62,8 @@ RELAX_STEPS = 12
 _OUTSIDE = 4.0
 # Margin (in r and g) around the allowed illuminant region, so relaxed sets can widen past it.
 _DOMAIN_MARGIN = 0.005
-# MV local refinement: a (n x n) patch of half-width ``step`` around the best direction, then
-# ``step / 4``, ... so the final resolution is far below the fine grid step.
+# MV refinement: a pattern search with (n x n) patches around the best direction, starting at one
+# fine-grid step; it moves along thin spikes of the feasible set and shrinks four-fold otherwise.
 _MV_PATCH = 9
 _MV_ROUNDS = 6
 # Safety factor on the first-order cell bound of the locating pass.
