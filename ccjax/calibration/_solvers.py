@@ -6,11 +6,12 @@ quadratic programme in the stacked unknowns ``x`` (sensor samples, then linearis
     minimise  ½ xᵀ Q x − cᵀ x   subject to   lower <= x <= upper   [and  g_lo <= G x <= g_hi].
 
 * Bounds only (positivity (3.7), the range constraint (3.8)): jaxopt ``ProjectedGradient``
-  (accelerated, fixed step 1/‖Q‖) in rounds, each finished by a primal–dual active-set polish (the step OSQP calls "polishing"): with the active
-  bounds fixed, the free unknowns solve a linear system exactly, so the answer is exact once the
-  gradient method has found the active set. The result with the smaller KKT residual is kept.
+  (accelerated, fixed step 1/‖Q‖) in rounds, each finished by a Lawson–Hanson active-set polish
+  (the step OSQP calls "polishing"): with the active bounds fixed, the other unknowns solve a
+  linear system exactly, so the answer is exact once the active set is right. The result with the
+  smaller KKT residual is kept. With no bound at all the polish is the normal equations.
 * General linear inequalities (the error bounds (3.9), (3.13)): jaxopt ``BoxOSQP``.
-* No constraint at all: the normal equations, solved directly.
+* Smoothness 0 and no constraint (the pseudo-inverse, eq. 3.3): the SVD least-squares solution.
 
 All solvers work on the Jacobi-scaled problem (unit diagonal), which leaves box constraints boxes
 and makes one step size fit every channel. Everything here is jit- and vmap-able; jaxopt is
@@ -32,7 +33,7 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", category=DeprecationWarning, module="jaxopt")
     import jaxopt
 
-POLISH_STEPS = 12
+POLISH_STEPS = 300
 
 
 class Solution(NamedTuple):
@@ -71,40 +72,76 @@ def _relative_residual(Qs, cs, y, lower, upper):
 
 
 def _polish(Qs, cs, y, lower, upper):
-    """Primal–dual active-set iterations (Hintermüller, Ito & Kunisch 2002) from ``y``.
+    """Lawson–Hanson active-set iterations (Lawson & Hanson 1974, ch. 23), warm-started at ``y``.
 
-    Each step fixes the unknowns whose trial step ``y - grad`` leaves the box at that bound and
-    solves for the others exactly (Cholesky of the free block); it stops when the active set no
-    longer changes (then ``y`` is the exact minimiser) or after ``POLISH_STEPS`` steps.
+    Bounds are taken per unknown as fixed (``lower == upper``), free, or one-sided (the upper-bounded
+    ones are mirrored into lower-bounded ones) — the only kinds the sensor fits create. With the
+    passive set P, the passive unknowns solve the equality-constrained problem exactly (Cholesky of
+    the passive block); a step that would cross a bound is shortened to it and that unknown leaves
+    P; then the bounded unknown with the most negative gradient enters P, until none has one (the
+    KKT conditions hold) or ``POLISH_STEPS`` outer steps have been taken. Warm-started from the
+    gradient method's support this usually ends after one solve; from a poor start it still
+    converges, where a primal–dual active-set method can cycle on the ill-conditioned
+    pseudo-inverse problems.
     """
     n = y.shape[0]
-    ridge = 10 * jnp.finfo(y.dtype).eps
+    dtype = y.dtype
+    ridge = 10 * jnp.finfo(dtype).eps
+    fixed = jnp.isfinite(lower) & (lower == upper)
+    has_lower = jnp.isfinite(lower) & ~fixed
+    has_upper = jnp.isfinite(upper) & ~fixed & ~has_lower
+    bounded = has_lower | has_upper
+    sign = jnp.where(has_upper, -1.0, 1.0).astype(dtype)
+    offset = jnp.where(has_lower | fixed, jnp.where(jnp.isfinite(lower), lower, 0.0), jnp.where(has_upper, upper, 0.0))
+    # x = offset + sign * z with z >= 0 on bounded unknowns, z free on free ones, z = 0 on fixed ones.
+    Qz = Qs * sign[:, None] * sign[None, :]
+    cz = sign * (cs - Qs @ offset)
+    z = jnp.where(fixed, 0.0, sign * (y - offset))
+    z = jnp.where(bounded, jnp.maximum(z, 0.0), z)
+    passive = ~fixed & (~bounded | (z > 0))
+    tiny = jnp.finfo(dtype).tiny
 
-    def active_sets(y):
-        trial = y - (Qs @ y - cs)
-        at_lower = jnp.isfinite(lower) & (trial <= lower)
-        at_upper = jnp.isfinite(upper) & (trial >= upper) & ~at_lower
-        return at_lower, at_upper
+    def solve_on(P):
+        p = P.astype(dtype)
+        K = Qz * p[:, None] * p[None, :] + jnp.diag(1.0 - p + ridge * p)
+        return p * jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(K), p * cz)
 
-    def step(state):
-        y, (at_lower, at_upper), _, count = state
-        fixed = at_lower | at_upper
-        y_fixed = jnp.where(at_lower, lower, jnp.where(at_upper, upper, 0.0))
-        free = (~fixed).astype(y.dtype)
-        K = Qs * free[:, None] * free[None, :] + jnp.diag(1.0 - free + ridge * free)
-        rhs = free * (cs - Qs @ y_fixed) + (1.0 - free) * y_fixed
-        y_new = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(K), rhs)
-        y_new = jnp.where(jnp.all(jnp.isfinite(y_new)), y_new, y)
-        new_sets = active_sets(y_new)
-        changed = jnp.any(new_sets[0] != at_lower) | jnp.any(new_sets[1] != at_upper)
-        return y_new, new_sets, changed, count + 1
+    def inner_step(state):
+        z, P, _, count = state
+        s = solve_on(P)
+        crossing = P & bounded & (s <= 0)
+        ok = ~jnp.any(crossing)
+        ratio = jnp.where(crossing, z / jnp.maximum(z - s, tiny), jnp.inf)
+        j = jnp.argmin(ratio)
+        alpha = jnp.clip(ratio[j], 0.0, 1.0)
+        z_new = jnp.where(ok, s, z + alpha * (s - z))
+        z_new = jnp.where(bounded, jnp.maximum(z_new, 0.0), z_new)
+        leaving = bounded & (z_new <= 0)
+        P_new = jnp.where(ok, P, P & ~leaving & (jnp.arange(n) != j))
+        z_new = jnp.where(P_new | ~bounded, z_new, 0.0)
+        return z_new, P_new, ok, count + 1
 
-    def keep_going(state):
-        return state[2] & (state[3] < POLISH_STEPS)
+    def consistent(z, P):
+        return jax.lax.while_loop(lambda st: ~st[2] & (st[3] < n), inner_step, (z, P, jnp.asarray(False), jnp.asarray(0)))[:2]
+
+    def outer_step(state):
+        z, P, _, steps = state
+        gradient = cz - Qz @ z  # the negative gradient
+        size = jnp.maximum(1.0, jnp.max(jnp.abs(cz)) + jnp.max(jnp.abs(Qz) @ jnp.abs(z)))
+        candidates = bounded & ~P
+        j = jnp.argmax(jnp.where(candidates, gradient, -jnp.inf))
+        done = ~jnp.any(candidates) | (gradient[j] <= _tolerance(dtype) * size)
+        z_new, P_new = jax.lax.cond(done, lambda: (z, P), lambda: consistent(z, P.at[j].set(True)))
+        # Rounding can make the entering unknown leave again at once; then nothing more can be
+        # gained (and Lawson–Hanson would cycle), so stop.
+        stalled = ~P_new[j]
+        return z_new, P_new, done | stalled, steps + 1
 
     if n == 0:
         return y
-    return jax.lax.while_loop(keep_going, step, (y, active_sets(y), jnp.asarray(True), jnp.asarray(0)))[0]
+    z, passive = consistent(z, passive)
+    z, _, _, _ = jax.lax.while_loop(lambda st: ~st[2] & (st[3] < POLISH_STEPS), outer_step, (z, passive, jnp.asarray(False), jnp.asarray(0)))
+    return jnp.where(fixed, lower, offset + sign * z)
 
 
 def solve_box_qp(
@@ -136,9 +173,11 @@ def solve_box_qp(
     Qs, cs, lo, hi, d = _jacobi(Q, c, lower, upper)
     tol = _tolerance(Qs.dtype)
     start = jnp.clip(jnp.zeros_like(cs), lo, hi)
-    # Dividing the objective by its Lipschitz constant (the top eigenvalue; Gershgorin would be
-    # safe but loose) leaves the minimiser alone and makes 1 the optimal fixed step.
-    lipschitz = jnp.linalg.eigvalsh(Qs)[-1]
+    # Dividing the objective by a Lipschitz constant leaves the minimiser alone and makes 1 a safe
+    # fixed step. The Frobenius norm bounds the top eigenvalue from above and is close to it here
+    # (Gram matrices of spectra are dominated by a few directions); it costs one pass over Q,
+    # where an eigenvalue solver takes far longer than the whole fit on CPU.
+    lipschitz = jnp.maximum(jnp.linalg.norm(Qs), jnp.finfo(Qs.dtype).tiny)
     Qn, cn = Qs / lipschitz, cs / lipschitz
     solver = jaxopt.ProjectedGradient(
         fun=lambda y, Q, c: 0.5 * y @ (Q @ y) - c @ y,
@@ -176,6 +215,35 @@ def solve_box_qp(
     return Solution(x=y * d, kkt_residual=residual, iterations=iterations, converged=residual <= tol)
 
 
+def _polish_qp(Qs, cs, A, l, u, x, z, y):
+    """OSQP-style solution polishing (Stellato et al. 2020, §5.2): take the constraints ADMM left at a
+    bound with a non-zero dual as equalities and solve the equality-constrained QP's KKT system
+    exactly. Returns the polished point and whether it is feasible with correctly signed duals."""
+    n = x.shape[0]
+    m = A.shape[0]
+    dtype = x.dtype
+    at_lower = (z <= l) & (y < 0)
+    at_upper = (z >= u) & (y > 0) & ~at_lower
+    active = (at_lower | at_upper).astype(dtype)
+    target = jnp.where(at_lower, l, jnp.where(at_upper, u, 0.0))
+    reg = 1e3 * jnp.finfo(dtype).eps
+    K = jnp.block([[Qs + reg * jnp.eye(n, dtype=dtype), A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active + reg * active)]])
+    rhs = jnp.concatenate([cs, active * target])
+    solution = jnp.linalg.solve(K, rhs)
+    for _ in range(2):  # iterative refinement against the regularisation
+        residual = rhs - jnp.block([[Qs, A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active)]]) @ solution
+        solution = solution + jnp.linalg.solve(K, residual)
+    xp, nu = solution[:n], solution[n:]
+    Ax = A @ xp
+    scale = 1.0 + jnp.max(jnp.abs(jnp.where(jnp.isfinite(l), l, 0.0))) + jnp.max(jnp.abs(jnp.where(jnp.isfinite(u), u, 0.0)))
+    tol = jnp.sqrt(jnp.finfo(dtype).eps) * scale
+    feasible = jnp.all((Ax >= l - tol) & (Ax <= u + tol))
+    # Stationarity Qx - c + Aᵀnu = 0 with nu <= 0 on lower-active and >= 0 on upper-active rows.
+    signs = jnp.all(jnp.where(at_lower, nu <= tol, True) & jnp.where(at_upper, nu >= -tol, True))
+    ok = feasible & signs & jnp.all(jnp.isfinite(xp)) & (m > 0)
+    return xp, ok
+
+
 def solve_qp(
     Q: Float[Array, "n n"],
     c: Float[Array, " n"],
@@ -187,20 +255,25 @@ def solve_qp(
     *,
     maxiter: int = 20000,
 ) -> Solution:
-    """``min ½xᵀQx − cᵀx`` s.t. box bounds and ``g_lower <= G x <= g_upper``: jaxopt BoxOSQP.
+    """``min ½xᵀQx − cᵀx`` s.t. box bounds and ``g_lower <= G x <= g_upper``: jaxopt BoxOSQP,
+    then OSQP's solution polishing (exact when the active set is right).
 
-    Rows of ``G`` with infinite bounds on both sides are inactive (used for masked measurements).
+    Rows of ``G`` should be scaled like the objective (BoxOSQP does no equilibration).
 
     Returns:
-        :class:`Solution`; ``converged`` is BoxOSQP's "solved" status (False when the constraints
-        are infeasible or the iteration cap was hit).
+        :class:`Solution`; ``converged`` when BoxOSQP reports "solved" or the polished solution
+        is feasible with correctly signed multipliers.
     """
     Qs, cs, lo, hi, d = _jacobi(Q, c, lower, upper)
     Gs = G * d[None, :]
+    # Unit-norm constraint rows (one step of Ruiz equilibration): ADMM stalls on badly scaled rows.
+    norms = jnp.linalg.norm(Gs, axis=1)
+    row_scale = jnp.where(norms > 0, 1.0 / jnp.where(norms > 0, norms, 1.0), 1.0)
+    Gs = Gs * row_scale[:, None]
     n = Qs.shape[0]
     A = jnp.concatenate([jnp.eye(n, dtype=Qs.dtype), Gs], axis=0)
-    l = jnp.concatenate([lo, g_lower])
-    u = jnp.concatenate([hi, g_upper])
+    l = jnp.concatenate([lo, g_lower * row_scale])
+    u = jnp.concatenate([hi, g_upper * row_scale])
     # ADMM reaches ~1e-9 (x64) / ~1e-5 (float32) primal-dual residuals in a few thousand steps.
     solver = jaxopt.BoxOSQP(
         tol=1e-9 if jnp.finfo(Qs.dtype).bits == 64 else 1e-5,
@@ -211,19 +284,11 @@ def solve_qp(
         jit=True,
     )
     result = solver.run(params_obj=(Qs, -cs), params_eq=A, params_ineq=(l, u))
-    y = result.params.primal[0]
-    residual = _relative_residual(Qs, cs, y, lo, hi)  # bound part only; BoxOSQP checks the rest
-    return Solution(x=y * d, kkt_residual=residual, iterations=result.state.iter_num, converged=result.state.status == 1)
-
-
-def solve_unconstrained(Q: Float[Array, "n n"], c: Float[Array, " n"]) -> Solution:
-    """The normal equations ``Q x = c`` (smooth fit without positivity); exact."""
-    Qs, cs, _, _, d = _jacobi(Q, c, jnp.zeros_like(c), jnp.zeros_like(c))
-    y = jnp.linalg.solve(Qs, cs)
-    ok = jnp.all(jnp.isfinite(y))
-    y = jnp.where(ok, y, 0.0)
-    residual = _relative_residual(Qs, cs, y, jnp.full_like(y, -jnp.inf), jnp.full_like(y, jnp.inf))
-    return Solution(x=y * d, kkt_residual=residual, iterations=jnp.asarray(1), converged=ok)
+    x, z = result.params.primal
+    polished, ok = _polish_qp(Qs, cs, A, l, u, x, z, result.params.dual_eq)
+    y = jnp.where(ok, polished, x)
+    residual = _relative_residual(Qs, cs, y, lo, hi)  # bound part only; the polish checks the rest
+    return Solution(x=y * d, kkt_residual=residual, iterations=result.state.iter_num, converged=ok | (result.state.status == 1))
 
 
 def solve_least_squares(A: Float[Array, "m n"], b: Float[Array, " m"]) -> Solution:

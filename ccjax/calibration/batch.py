@@ -68,26 +68,41 @@ def _options_for(**options):
     return _plan(**full)
 
 
-@functools.partial(jax.jit, static_argnames=("solver", "search", "shared_data"))
-def _fit_many(spectra, raw, masks, options: _Options, smoothness, solver: str, search: bool, shared_data: bool):
-    """Fits for a batch: ``masks (B, M)`` and ``smoothness (B,)`` always batched; spectra and raw
-    batched unless ``shared_data``. Returns the batched fits plus each fit's linear responses."""
+@functools.partial(jax.jit, static_argnames=("solver", "search"))
+def _fit_many(spectra, raw, masks, options: _Options, smoothness, solver: str, search: bool):
+    """Fits for a batch: every argument but ``options`` has a leading batch axis."""
 
     def one(spectra, raw, mask, lam):
         fits, rates = _fit_data_set(spectra, raw, mask, options._replace(smoothness=lam), solver, search)
         sensors = fits.sensor.T
-        linear = fits.linear.T
-        return (
-            sensors,
-            fits.a0,
-            fits.a1,
-            rates,
-            fits.solution.converged,
-            fit_errors(spectra @ sensors, linear, mask),
-        )
+        return sensors, fits.a0, fits.a1, rates, fits.solution.converged, fit_errors(spectra @ sensors, fits.linear.T, mask)
 
-    axis = None if shared_data else 0
-    return jax.vmap(one, in_axes=(axis, axis, 0, 0))(spectra, raw, masks, smoothness)
+    return jax.vmap(one)(spectra, raw, masks, smoothness)
+
+
+DEFAULT_CHUNK = 20
+
+
+def _run_chunks(spectra, raw, masks, smoothness, plan, chunk_size: int):
+    """Run :func:`_fit_many` over the batch in chunks of exactly ``chunk_size`` (the last one padded
+    by repeating its first entry), so every batch size reuses one compiled program."""
+    dtype = plan.options.smoothness.dtype
+    total = masks.shape[0]
+    chunks = []
+    for start in range(0, total, chunk_size):
+        index = np.arange(start, min(start + chunk_size, total))
+        padded = np.concatenate([index, np.full(chunk_size - index.size, index[0])])
+        out = _fit_many(
+            jnp.asarray(spectra[padded] if spectra.ndim == 3 else np.broadcast_to(spectra, (chunk_size,) + spectra.shape), dtype),
+            jnp.asarray(raw[padded] if raw.ndim == 3 else np.broadcast_to(raw, (chunk_size,) + raw.shape), dtype),
+            jnp.asarray(masks[padded]),
+            plan.options,
+            jnp.asarray(smoothness[padded], dtype),
+            plan.solver,
+            plan.search,
+        )
+        chunks.append(jax.tree_util.tree_map(lambda leaf: leaf[: index.size], out))
+    return jax.tree_util.tree_map(lambda *leaves: jnp.concatenate(leaves), *chunks)
 
 
 def _batch_fit(outputs, options: _Options, linearised: bool) -> BatchFit:
@@ -117,7 +132,8 @@ def fit_sensors_batch(
     Arguments:
         spectra: ``(B, M, 101)``; responses ``(B, M, 3)``; mask ``(B, M)`` (pad unequal data sets
             with ``False`` rows).
-        chunk_size: fit this many data sets per call (bounded memory); default all at once.
+        chunk_size: data sets per compiled call (bounded memory; default 20); the last chunk is
+            padded, so any batch size reuses the program compiled for this chunk size.
         **options: as :func:`ccjax.calibration.fit_sensors` (``smoothness``, ``error``,
             ``positive``, ``support``, ``linearisation``, ``black``, ``exp_rate``, ...).
 
@@ -136,19 +152,8 @@ def fit_sensors_batch(
     for b in range(spectra.shape[0]):
         _check_data(spectra[b], responses[b], mask[b])
     plan = _options_for(**options)
-    dtype = plan.options.smoothness.dtype
-    size = chunk_size or spectra.shape[0]
-    chunks = []
-    for start in range(0, spectra.shape[0], size):
-        part = slice(start, start + size)
-        n = len(range(*part.indices(spectra.shape[0])))
-        chunks.append(
-            _fit_many(
-                jnp.asarray(spectra[part], dtype), jnp.asarray(responses[part], dtype), jnp.asarray(mask[part]),
-                plan.options, jnp.full(n, plan.options.smoothness), plan.solver, plan.search, False,
-            )
-        )
-    outputs = jax.tree_util.tree_map(lambda *leaves: jnp.concatenate(leaves), *chunks)
+    smoothness = np.full(spectra.shape[0], float(plan.options.smoothness))
+    outputs = _run_chunks(spectra, responses, mask, smoothness, plan, chunk_size or DEFAULT_CHUNK)
     return _batch_fit(outputs, plan.options, plan.kind == "exp")
 
 
@@ -158,7 +163,7 @@ def fit_subsets(
     masks: Bool[np.ndarray, "B M"],
     *,
     smoothness=None,
-    chunk_size: int = 100,
+    chunk_size: int = DEFAULT_CHUNK,
     **options,
 ) -> BatchFit:
     """Fit one data set many times, each on the rows one mask selects (vmapped, in chunks).
@@ -180,13 +185,7 @@ def fit_subsets(
     plan = _options_for(smoothness=float(lam[0]), **options)
     if plan.solver == "lstsq" and np.any(lam > 0):
         plan = _options_for(smoothness=float(lam.max()), **options)  # a smoothed fit needs the QP solver
-    dtype = plan.options.smoothness.dtype
-    data = jnp.asarray(spectra, dtype), jnp.asarray(responses, dtype)
-    chunks = []
-    for start in range(0, masks.shape[0], chunk_size):
-        part = slice(start, start + chunk_size)
-        chunks.append(_fit_many(*data, jnp.asarray(masks[part]), plan.options, jnp.asarray(lam[part], dtype), plan.solver, plan.search, True))
-    outputs = jax.tree_util.tree_map(lambda *leaves: jnp.concatenate(leaves), *chunks)
+    outputs = _run_chunks(spectra, responses, masks, lam, plan, chunk_size)
     return _batch_fit(outputs, plan.options, plan.kind == "exp")
 
 

@@ -261,7 +261,7 @@ def robustness(
     sizes=ROBUSTNESS_SIZES,
     n_subsets: int = 100,
     seed: int = 0,
-    chunk_size: int = 50,
+    chunk_size: int = 20,
     progress=None,
 ) -> Robustness:
     """The robustness experiment of §3.6 (Fig. 3.6).

@@ -248,9 +248,13 @@ def _fit_channel(spectra, raw, mask, options: _Options, lower, upper, black, exp
         if solver == "box":
             sol = _solvers.solve_box_qp(Q, c, lower, upper, maxiter=options.maxiter)
         elif solver == "osqp":
+            # |design . x - raw| <= deviation, each row scaled by its weight so the constraint rows
+            # are as well scaled as the objective (BoxOSQP does no equilibration of its own);
+            # rows not fitted become 0 <= 0 +- 1 (inactive).
             deviation = jnp.minimum(options.max_abs, options.max_rel * jnp.maximum(linear_estimate, floor))
-            deviation = jnp.where(mask, deviation, jnp.inf)
-            sol = _solvers.solve_qp(Q, c, lower, upper, design, raw - deviation, raw + deviation)
+            target = weight * raw
+            spread = jnp.where(mask, weight * deviation, 1.0)
+            sol = _solvers.solve_qp(Q, c, lower, upper, weighted, target - spread, target + spread)
         else:
             sol = _solvers.solve_least_squares(weighted[:, :n_wl], weight * raw)
             sol = sol._replace(x=jnp.concatenate([sol.x, jnp.zeros(2, dtype)]))
@@ -275,11 +279,16 @@ def _fit_channel(spectra, raw, mask, options: _Options, lower, upper, black, exp
 
 @functools.partial(jax.jit, static_argnames="solver")
 def _fit_kernel(spectra, raw, mask, options: _Options, solver: str) -> _ChannelFit:
-    """One data set, the three channels vmapped. Leaves of the result have a leading axis of 3."""
-    per_channel = jax.vmap(
-        lambda r, lo, hi, b, C: _fit_channel(spectra, r, mask, options, lo, hi, b, C, solver), in_axes=(1, 1, 1, 0, 0)
-    )
-    return per_channel(raw, options.lower, options.upper, options.black, options.exp_rate)
+    """One data set, the three channels vmapped. Leaves of the result have a leading axis of 3.
+
+    BoxOSQP's channels run one after the other (``lax.map``) instead: under ``vmap`` its
+    data-dependent refactorisations (``lax.cond``) would run at every ADMM iteration.
+    """
+    one = lambda r, lo, hi, b, C: _fit_channel(spectra, r, mask, options, lo, hi, b, C, solver)  # noqa: E731
+    per_channel = (raw.T, options.lower.T, options.upper.T, options.black, options.exp_rate)
+    if solver == "osqp":
+        return jax.lax.map(lambda args: one(*args), per_channel)
+    return jax.vmap(one)(*per_channel)
 
 
 @functools.partial(jax.jit, static_argnames="solver")
@@ -546,8 +555,7 @@ def pseudo_inverse(spectra, responses, *, positive: bool = False, mask=None, nam
     smoothing; spiky and with negative lobes, Fig. 3.4). ``positive=True``: the same absolute error
     with R >= 0 (Fig. 3.5), solved by :func:`fit_sensors` with ``smoothness=0``.
     """
-    # Without smoothing the positive problem is badly conditioned: allow many more gradient rounds.
-    return fit_sensors(spectra, responses, smoothness=0.0, error="absolute", positive=positive, mask=mask, name=name, maxiter=30000 if positive else None)
+    return fit_sensors(spectra, responses, smoothness=0.0, error="absolute", positive=positive, mask=mask, name=name)
 
 
 def support_of(sensors: Float[np.ndarray, "101 3"], threshold: float = 0.01) -> np.ndarray:

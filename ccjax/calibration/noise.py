@@ -9,7 +9,6 @@ floor from such repeated measurements; :func:`synthetic_repeats` generates them.
 from __future__ import annotations
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -34,32 +33,30 @@ class NoiseModel(eqx.Module):
         return self.gain * jnp.asarray(mean) + self.floor
 
 
-def _fit_line(mean, variance, repeats, iterations: int = 4):
-    """Non-negative weighted least squares of ``variance ~ a mean + b`` for one channel.
+def _fit_line(mean: np.ndarray, variance: np.ndarray, iterations: int = 4) -> np.ndarray:
+    """Non-negative weighted least squares of ``variance ~ a mean + b`` for one channel (NumPy).
 
     A sample variance of R draws has standard deviation ``sqrt(2 / (R - 1))`` times its expectation,
-    so rows are weighted by ``1 / model variance``, iterated from unit weights.
+    so rows are weighted by ``1 / model variance`` (the common factor drops out), iterated from unit
+    weights.
     """
-    design = jnp.stack([mean, jnp.ones_like(mean)], axis=1)
+    design = np.stack([mean, np.ones_like(mean)], axis=1)
 
     def solve(weight):
         A = design * weight[:, None]
         y = variance * weight
-        full = jnp.linalg.lstsq(A, y)[0]
+        full = np.linalg.lstsq(A, y, rcond=None)[0]
         # The non-negative optimum lies on a face when the free one does not: try both single
         # coefficients and keep the best feasible candidate.
-        only_a = jnp.array([jnp.maximum(A[:, 0] @ y / jnp.maximum(A[:, 0] @ A[:, 0], 1e-30), 0.0), 0.0])
-        only_b = jnp.array([0.0, jnp.maximum(A[:, 1] @ y / jnp.maximum(A[:, 1] @ A[:, 1], 1e-30), 0.0)])
-        candidates = jnp.stack([full, only_a, only_b])
-        feasible = jnp.all(candidates >= 0, axis=1)
-        cost = jnp.where(feasible, jnp.sum((candidates @ A.T - y) ** 2, axis=1), jnp.inf)
-        return candidates[jnp.argmin(cost)]
+        only_a = np.array([max(A[:, 0] @ y / max(A[:, 0] @ A[:, 0], 1e-300), 0.0), 0.0])
+        only_b = np.array([0.0, max(A[:, 1] @ y / max(A[:, 1] @ A[:, 1], 1e-300), 0.0)])
+        candidates = [c for c in (full, only_a, only_b) if np.all(c >= 0)]
+        return min(candidates, key=lambda c: float(np.sum((A @ c - y) ** 2)))
 
-    coef = solve(jnp.ones_like(mean))
+    coef = solve(np.ones_like(mean))
     for _ in range(iterations):
-        model = jnp.maximum(design @ coef, 1e-3 * jnp.max(variance) + 1e-30)
+        model = np.maximum(design @ coef, 1e-3 * variance.max() + 1e-300)
         coef = solve(1.0 / model)
-    del repeats  # equal repeat counts: the factor sqrt(2 / (R - 1)) is common to every row
     return coef
 
 
@@ -80,11 +77,13 @@ def fit_noise_model(samples: Float[np.ndarray, "R N C"]) -> NoiseModel:
         raise ValueError(f"samples: expected (repeats >= 3, stimuli >= 2[, channels]), got shape {samples.shape}")
     if not np.all(np.isfinite(samples)):
         raise ValueError("samples: contains NaN or infinite values")
+    mean = samples.mean(axis=0)
+    variance = samples.var(axis=0, ddof=1)
+    coef = np.stack([_fit_line(mean[:, k], variance[:, k]) for k in range(samples.shape[2])])
     dtype = jnp.zeros(0).dtype
-    mean = jnp.asarray(samples.mean(axis=0), dtype)
-    variance = jnp.asarray(samples.var(axis=0, ddof=1), dtype)
-    coef = jax.vmap(lambda m, v: _fit_line(m, v, samples.shape[0]), in_axes=(1, 1))(mean, variance)
-    return NoiseModel(gain=coef[:, 0], floor=coef[:, 1], mean=mean, variance=variance)
+    return NoiseModel(
+        gain=jnp.asarray(coef[:, 0], dtype), floor=jnp.asarray(coef[:, 1], dtype), mean=jnp.asarray(mean, dtype), variance=jnp.asarray(variance, dtype)
+    )
 
 
 def synthetic_repeats(

@@ -77,6 +77,7 @@ def colorchecker() -> tuple[tuple[str, ...], np.ndarray]:
     return names, values
 
 
+@functools.cache
 def calibration_lights(data_dir=None) -> tuple[tuple[str, ...], np.ndarray, str]:
     """The 26 lights of the synthetic experiment: names, ``(26, 101)`` spectra, and the source."""
     try:
