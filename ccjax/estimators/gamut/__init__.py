@@ -1,13 +1,15 @@
 """3-D gamut mapping: CRULE / ECRULE (and ND) with MV, AVE, ICA and SCWIA-N (Barnard 1999 §2.3.4,
 §4.5.3, ch. 6), computed by illuminant-direction integration (DESIGN.md §4).
 
-Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``.
+Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``, and the
+differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``, ``margin``).
 """
 
 from ccjax.estimators.gamut.geometry import Facets, cone_planes, gamut_facets, nd_points
 from ccjax.estimators.gamut.kernel import Grid, GridOptions, evaluate
 from ccjax.estimators.gamut.model import GamutMapping, GamutModel, estimate_all, fit
 from ccjax.estimators.gamut.selectors import GamutEstimate, select
+from ccjax.estimators.gamut.soft import SoftGamutMapping
 
 __all__ = [
     "Facets",
@@ -15,6 +17,7 @@ __all__ = [
     "GamutMapping",
     "GamutModel",
     "Grid",
+    "SoftGamutMapping",
     "GridOptions",
     "cone_planes",
     "estimate_all",
@@ -32,6 +35,9 @@ __all__ = [
 from ccjax.estimators.registry import register as _register
 
 
+_SOFT_OPTIONS = ("tau", "kappa", "beta", "margin")
+
+
 def _build(world, match, **options):
     extension = "ND" if match["nd"] else None
     selector, power = match["selector"], 12.0
@@ -39,11 +45,17 @@ def _build(world, match, **options):
         selector, power = "SCWIA", float(match["power"])
     if selector == "ICA" and match["base"] != "ECRULE":
         raise ValueError("method: ICA is the illumination-constrained average; CRULE has none (use CRULE-AVE)")
-    return GamutMapping(fit(world, constraint=match["base"], extension=extension, **options), selector, power)
+    soft_options = {name: options.pop(name) for name in _SOFT_OPTIONS if name in options}
+    model = fit(world, constraint=match["base"], extension=extension, **options)
+    if match["soft"]:
+        return SoftGamutMapping(model, selector, power, **soft_options)
+    if soft_options:
+        raise ValueError(f"options: {sorted(soft_options)} apply to the soft- variants only")
+    return GamutMapping(model, selector, power)
 
 
 _register(
-    r"(?P<nd>ND-)?(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))",
+    r"(?P<soft>soft-)?(?P<nd>ND-)?(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))",
     "ND-ECRULE-SCWIA-12",
-    "3-D gamut mapping [ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) by direction integration (§4.5.3, ch. 6)",
+    "3-D gamut mapping [soft-][ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) by direction integration (§4.5.3, ch. 6)",
 )(_build)

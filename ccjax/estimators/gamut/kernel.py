@@ -59,7 +59,10 @@ class GridOptions:
         refine_steps: iterations of the MV pattern search (it starts at half a fine step).
         locate_observations: observations kept for locating (the extreme chromaticities in this
             many directions) when a scene has more.
-        fine_observations: observations kept for the fine stage when a scene has more.
+        fine_observations: observations kept for the fine stage when a scene has more (at most
+            about 25 are support points at 64 surfaces);
+        large_scene, large_fine_observations: the budget for scenes of more than ``large_scene``
+            observations (at most about 43 at 1024 surfaces with the ND gamut).
         reduction_samples: per-axis sample directions used to pick those observations.
         first_level, levels: relaxation levels ``first_level * 2^i``, ``i < levels``.
     """
@@ -69,7 +72,9 @@ class GridOptions:
     fine_points: int = 45
     refine_steps: int = 24
     locate_observations: int = 48
-    fine_observations: int = 24
+    fine_observations: int = 32
+    large_scene: int = 128
+    large_fine_observations: int = 48
     reduction_samples: int = 5
     first_level: float = 1e-3
     levels: int = 10
@@ -234,7 +239,7 @@ def _support_observations(model, obs: Observations, q, usable, lo, hi, options: 
         ]
     )
     chosen = jnp.zeros(q.shape[0], bool).at[winners].set(True) & usable
-    count = options.fine_observations
+    count = options.fine_observations if q.shape[0] <= options.large_scene else options.large_fine_observations
     index = jnp.argsort(~chosen, stable=True)[:count]
     keep = chosen[index]
     kept = obs.take(index)

@@ -1,0 +1,126 @@
+"""Differentiable gamut mapping (DESIGN.md §5; spec ch08-12 §9.2 "soft/differentiable versions").
+
+The hard selectors have zero or undefined gradients: ``T(u)`` is a minimum over constraints and
+feasibility is an indicator. Here every non-smooth step gets a temperature:
+
+* ``1/T`` is a soft maximum of the top-facet constraint values ``d``: their ``1/tau``-norm
+  ``(sum max(d, 0)^(1/tau))^tau`` (a relative temperature);
+* the surface violation is a soft maximum with width ``kappa`` (sine units) and feasibility is
+  ``sigmoid((eps - V)/kappa)`` (ECRULE multiplies the illumination constraint's sigmoid);
+* MV becomes a softmax over directions with inverse temperature ``beta`` on ``log(T^3/(rgb))``;
+  AVE, ICA and SCWIA already are weighted averages and just use the soft mask as a weight.
+
+Gradients reach the input RGB and the model's arrays (canonical gamut facets, white). The grid
+box comes from the hard locating stage under ``stop_gradient`` (it is piecewise constant in the
+input), widened by ``margin`` so the soft mask has decayed at its edges.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from ccjax.estimators.base import Estimator, with_fallback
+from ccjax.estimators.gamut.kernel import (
+    _BIG,
+    _dot,
+    _square_grid,
+    cone_violation,
+    directions,
+    locate,
+    observations,
+    relaxation_level,
+)
+from ccjax.estimators.gamut.model import GamutModel
+from ccjax.estimators.gamut.selectors import SELECTORS, GamutEstimate, mask_violation
+
+
+def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, "G"]:
+    top = jax.lax.stop_gradient(jnp.max(values, axis=1, keepdims=True))
+    return top[:, 0] + temperature * jnp.log(jnp.sum(jnp.exp((values - top) / temperature), axis=1))
+
+
+class SoftGamutMapping(Estimator):
+    """A gamut-mapping selector with soft feasibility and soft selection.
+
+    Attributes:
+        model: the fitted model (its arrays receive gradients).
+        selector: ``"MV"``, ``"AVE"``, ``"ICA"`` or ``"SCWIA"``; ``power``: SCWIA's N.
+        tau: relative temperature of the soft minimum giving ``T``.
+        kappa: width (sine units) of the soft feasibility and of the soft maximum of violations.
+        beta: inverse temperature of soft MV on log-volume.
+        margin: (r,g) widening of the hard box the grid covers.
+    """
+
+    model: GamutModel
+    selector: str = eqx.field(static=True)
+    power: float = eqx.field(static=True, default=12.0)
+    tau: float = eqx.field(static=True, default=0.01)
+    kappa: float = eqx.field(static=True, default=0.002)
+    beta: float = eqx.field(static=True, default=200.0)
+    margin: float = eqx.field(static=True, default=0.02)
+    estimates_brightness = True
+
+    def __check_init__(self):
+        if self.selector not in SELECTORS:
+            raise ValueError(f"selector: expected one of {SELECTORS}, got {self.selector!r}")
+        if self.selector == "ICA" and self.model.constraint != "ECRULE":
+            raise ValueError("selector: ICA needs constraint='ECRULE'")
+        for name in ("tau", "kappa", "beta"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: expected a positive temperature parameter, got {getattr(self, name)!r}")
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> GamutEstimate:
+        model, options = self.model, self.model.options
+        rgb = jnp.asarray(rgb)
+        obs, q, usable = observations(model, rgb, mask)
+        lo, hi = jax.lax.stop_gradient(locate(model, obs, q, usable, options))
+        rg, _ = _square_grid(lo - self.margin, hi + self.margin, options.fine_points)
+        u, v, valid = directions(rg)
+        dtype = rgb.dtype
+
+        n_obs, k0, _ = obs.origin.shape
+        scale = jnp.repeat(obs.scale, k0, axis=0)
+        ratio = _dot(v, obs.origin.reshape(n_obs * k0, 3)) * jax.lax.rsqrt(_dot(v * v, scale * scale))
+        surface = _soft_max(ratio, self.kappa)
+        # 1/T as a p-norm (p = 1/tau) of the positive constraint values: a soft maximum with a
+        # relative temperature; the hard maximum only rescales it (homogeneity), so stopping its
+        # gradient changes nothing.
+        top = _dot(v, obs.top.reshape(-1, 3))
+        hard = jax.lax.stop_gradient(jnp.maximum(jnp.max(top, axis=1, keepdims=True), 1e-30))
+        ratio_top = jnp.maximum(top, 0.0) / hard
+        inverse = hard[:, 0] * jnp.sum(ratio_top ** (1.0 / self.tau), axis=1) ** self.tau
+        illuminant = cone_violation(u, model.illuminant_planes.astype(dtype))
+        cone = cone_violation(v * model.white.astype(dtype), model.map_planes.astype(dtype))
+        violation = mask_violation(model.constraint, self.selector, surface, illuminant, cone)
+
+        bounded = valid & (inverse > 0)
+        violation = jnp.where(bounded, violation, _BIG)
+        level, failed = relaxation_level(jax.lax.stop_gradient(jnp.min(violation)), options)
+        log_mask = jax.nn.log_sigmoid((level - violation) / self.kappa)
+        log_mask = jnp.where(bounded, log_mask, -jnp.inf)
+        log_t = -jnp.log(jnp.where(bounded, inverse, 1.0))
+        log_u = jnp.sum(jnp.log(u), axis=-1)
+        white = model.white.astype(dtype)
+
+        if self.selector == "MV":
+            weight = jax.nn.softmax(self.beta * (3.0 * log_t - log_u) + log_mask)
+            estimate = jnp.sum((weight * jnp.where(bounded, inverse, 0.0))[:, None] * u, axis=0)
+        elif self.selector in ("AVE", "ICA"):
+            weight = jax.nn.softmax(3.0 * log_t - 2.0 * log_u + log_mask)
+            centroid = 0.75 * jnp.sum((weight * jnp.exp(log_t))[:, None] * (white * v), axis=0)
+            estimate = white / centroid
+        else:
+            log_weight = self.power / 3.0 * (3.0 * log_t - log_u + jnp.sum(jnp.log(white))) - 1.5 * jnp.log(jnp.sum(u * u, axis=-1))
+            weight = jax.nn.softmax(log_weight + log_mask)
+            estimate = jnp.sum(weight[:, None] * u, axis=0) * jnp.sum(weight * jnp.where(bounded, inverse, 0.0))
+        found = jnp.any(usable) & ~failed
+        result = with_fallback(estimate, found, model.fallback.astype(dtype))
+        return GamutEstimate(
+            illuminant=result.illuminant,
+            ok=result.ok & (level == 0),
+            relaxation=jnp.where(found, level, jnp.inf).astype(dtype),
+            exact=jnp.asarray(True),
+        )
