@@ -81,8 +81,11 @@ def test_bounded_fits_match_lsq_linear_x64(synthetic, linear_data):
     assert bool(np.all(smooth.status.converged)) and bool(np.all(joint.status.converged))
 
 
+@pytest.mark.slow
 def test_error_bounded_fit_matches_slsqp_x64(synthetic, linear_data):
-    """The relative- and absolute-error bounds (3.13, 3.9) through BoxOSQP equal SLSQP's solution."""
+    """The relative- and absolute-error bounds (3.13, 3.9) through BoxOSQP equal SLSQP's solution.
+
+    Slow (6-25 s here: an x64 BoxOSQP compile plus six SLSQP solves)."""
     spectra, linear = linear_data
     rng = np.random.default_rng(1)
     mask = synthetic.usable & (rng.random(len(spectra)) < 0.15)  # ~90 rows keep SLSQP quick

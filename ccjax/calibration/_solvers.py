@@ -67,8 +67,9 @@ def _kkt_residual(Qs, cs, y, lower, upper):
 
 
 def _relative_residual(Qs, cs, y, lower, upper):
+    """KKT residual relative to the gradient's scale; ``inf`` for a non-finite point."""
     residual, size = _kkt_residual(Qs, cs, y, lower, upper)
-    return residual / size
+    return jnp.where(jnp.all(jnp.isfinite(y)) & jnp.isfinite(residual), residual / size, jnp.inf)
 
 
 def _polish(Qs, cs, y, lower, upper):
@@ -109,6 +110,10 @@ def _polish(Qs, cs, y, lower, upper):
     def inner_step(state):
         z, P, _, count = state
         s = solve_on(P)
+        # A numerically singular passive block (more passive unknowns than independent rows, in
+        # float32): keep z and drop the passive set back to what z supports.
+        finite = jnp.all(jnp.isfinite(s))
+        s = jnp.where(finite, s, z)
         crossing = P & bounded & (s <= 0)
         ok = ~jnp.any(crossing)
         ratio = jnp.where(crossing, z / jnp.maximum(z - s, tiny), jnp.inf)
@@ -119,7 +124,8 @@ def _polish(Qs, cs, y, lower, upper):
         leaving = bounded & (z_new <= 0)
         P_new = jnp.where(ok, P, P & ~leaving & (jnp.arange(n) != j))
         z_new = jnp.where(P_new | ~bounded, z_new, 0.0)
-        return z_new, P_new, ok, count + 1
+        P_new = jnp.where(finite, P_new, P & (~bounded | (z > 0)))
+        return z_new, P_new, ok | ~finite, count + 1
 
     def consistent(z, P):
         return jax.lax.while_loop(lambda st: ~st[2] & (st[3] < n), inner_step, (z, P, jnp.asarray(False), jnp.asarray(0)))[:2]
