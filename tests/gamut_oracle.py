@@ -32,6 +32,21 @@ def illuminant_polygon(whites: np.ndarray) -> np.ndarray:
     return ConvexHull(rg).equations
 
 
+def polygon_vertices(equations: np.ndarray) -> np.ndarray:
+    """Vertices of the polygon ``E [r, g, 1] <= 0`` (pairwise intersections of its edge lines
+    that satisfy all the others)."""
+    points = []
+    for i in range(len(equations)):
+        for j in range(i + 1, len(equations)):
+            m = equations[[i, j], :2]
+            if abs(np.linalg.det(m)) < 1e-12:
+                continue
+            x = np.linalg.solve(m, -equations[[i, j], 2])
+            if np.all(equations[:, :2] @ x + equations[:, 2] <= 1e-9):
+                points.append(x)
+    return np.array(points)
+
+
 def in_polygon(equations: np.ndarray, rg: np.ndarray) -> np.ndarray:
     return np.all(rg @ equations[:, :2].T + equations[:, 2] <= 0, axis=-1)
 
@@ -52,10 +67,20 @@ def map_cone_halfspaces(whites: np.ndarray, white: np.ndarray) -> np.ndarray:
     return np.array(rows)
 
 
+def extreme_observations(observed: np.ndarray) -> np.ndarray:
+    """The vertices of ``conv({0} ∪ observed)`` other than the origin: a map sends every observed
+    RGB into the (convex, origin-containing) gamut iff it sends these (spec ch05-07 §1.4)."""
+    observed = np.asarray(observed, np.float64)
+    if len(observed) < 8:
+        return observed
+    hull = ConvexHull(np.vstack([np.zeros(3), observed]))
+    return observed[hull.vertices[hull.vertices > 0] - 1]
+
+
 def scene_constraints(A: np.ndarray, b: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(n_k * p_j) . d <= c_k`` for every observed RGB and facet, as one stacked system."""
+    """``(n_k * p_j) . d <= c_k`` for every extreme observed RGB and facet, as one stacked system."""
     rows, rhs = [], []
-    for p in np.asarray(observed, np.float64):
+    for p in extreme_observations(observed):
         for k in range(len(A)):
             rows.append(A[k] * p)
             rhs.append(b[k])
@@ -100,8 +125,11 @@ def polytope(A: np.ndarray, b: np.ndarray, min_radius: float = 1e-7) -> Polytope
     return Polytope(vertices=hull.points[hull.vertices], volume=volume, centroid=moment / volume, equations=hull.equations)
 
 
-def max_log_product(A: np.ndarray, b: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """The map maximising ``d_r d_g d_b`` over ``A d <= b`` (concave program, SLSQP from ``start``)."""
+def max_log_product(poly: Polytope) -> np.ndarray:
+    """The map maximising ``d_r d_g d_b`` over the polytope (a concave program: SLSQP on the
+    polytope's own facets, from its centroid)."""
+    A, b = poly.equations[:, :3], -poly.equations[:, 3]
+    start = poly.centroid
     result = minimize(
         lambda d: -np.sum(np.log(d)),
         start,
@@ -131,9 +159,13 @@ def direction_quadrature(poly: Polytope, white: np.ndarray, polygon: np.ndarray 
     Returns ``(rg (G, 2), T (G,))``, with ``T = 0`` outside the (surface, and if ``polygon`` is
     given illumination) constraints. Raises if feasible directions touch the grid's edge.
     """
-    directions = white / poly.vertices[np.all(poly.vertices > 1e-9, axis=1)]
-    chroma = directions[:, :2] / directions.sum(axis=1, keepdims=True)
-    lo, hi = chroma.min(axis=0) - pad, chroma.max(axis=0) + pad
+    if polygon is not None:
+        # Only directions inside the illuminant polygon count: cover its box.
+        corners = polygon_vertices(polygon)
+    else:
+        directions = white / poly.vertices[np.all(poly.vertices > 1e-9, axis=1)]
+        corners = directions[:, :2] / directions.sum(axis=1, keepdims=True)
+    lo, hi = corners.min(axis=0) - pad, corners.max(axis=0) + pad
     r = np.arange(lo[0], hi[0], step)
     g = np.arange(lo[1], hi[1], step)
     rr, gg = np.meshgrid(r, g, indexing="ij")
