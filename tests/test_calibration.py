@@ -186,6 +186,18 @@ def test_cross_validation_prefers_moderate_smoothing(synthetic):
     assert fit.smoothness == 0.03
 
 
+def test_tiny_subsets_stay_finite(synthetic):
+    """Two measurements for 3 x 103 unknowns: underdetermined, still finite and within the bounds."""
+    two = np.zeros(len(synthetic.usable), bool)
+    two[np.flatnonzero(synthetic.usable)[:2]] = True
+    fits = cal.fit_subsets(synthetic.spectra, synthetic.raw, np.stack([two, synthetic.usable]), linearisation="exp", **TRUE_F)
+    sensors = np.asarray(fits.sensors)
+    assert np.all(np.isfinite(sensors)) and np.all(sensors >= 0)
+    assert np.all(np.isfinite(np.asarray(fits.a0))) and np.all(np.isfinite(np.asarray(fits.a1)))
+    with pytest.raises(ValueError, match="same value"):
+        cal.fit_sensors(synthetic.spectra, np.ones((len(synthetic.usable), 3)))
+
+
 @pytest.mark.slow
 def test_sony_experiment_acceptance():
     """The issue's acceptance numbers on the thesis' camera (also printed by ccjax calibrate --synthetic)."""

@@ -350,6 +350,8 @@ def plot_robustness(result: Robustness, path: str, *, title: str = "") -> None:
         ax.plot(result.sizes, 100 * m, marker="o", label=label, **style)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_xticks(result.sizes, [str(n) for n in result.sizes])
+    ax.minorticks_off()
     ax.set_xlabel("measurements fitted (log)")
     ax.set_ylabel("RMS relative error on all measurements, % (log)")
     ax.grid(alpha=0.3, which="both")
@@ -423,8 +425,8 @@ class SyntheticReport:
             f"  (r,g) error of predictions vs the noise-free linear responses: joint F fit {c['rg_vs_truth_joint']:.4f}, "
             f"F ignored {c['rg_vs_truth_ignoring_F']:.4f}, camera black subtracted {c['rg_vs_truth_black_subtracted']:.4f}",
             f"  linearisation recovered: a0 within {100 * c['a0_relative_error_max']:.2f} %, a1 within {100 * c['a1_relative_error_max']:.2f} %",
-            f"  noise model from 100 repeats of 24 windows x 8 levels: gain {np.round(gain, 9).tolist()} (true {self.data.noise_gain:g}), "
-            f"floor {np.format_float_scientific(float(np.mean(floor)), 3)} (true {self.data.noise_floor:.3e})",
+            f"  noise model from 100 repeats of 24 windows x 8 levels: gain {[f'{v:.3e}' for v in gain]} (true {self.data.noise_gain:.3e}), "
+            f"floor {[f'{v:.3e}' for v in floor]} (true {self.data.noise_floor:.3e})",
         ]
         if self.cross_validation is not None:
             lines += ["", self.cross_validation.table()]

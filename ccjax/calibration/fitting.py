@@ -29,7 +29,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from ccjax.calibration import _solvers
 from ccjax.camera import Camera
@@ -147,7 +147,7 @@ class FitStatus(eqx.Module):
     solver: str = eqx.field(static=True)
     converged: Bool[Array, "3"]
     kkt_residual: Float[Array, "3"]
-    iterations: Float[Array, "3"]
+    iterations: Int[Array, "3"]
 
 
 class SensorFit(eqx.Module):
@@ -441,6 +441,9 @@ def _data_arrays(spectra, responses, mask, plan: _Plan):
         raise ValueError("mask: selects no measurement")
     if plan.kind is None and bool(plan.options.relative) and np.any(responses[mask] <= 0):
         raise ValueError("responses: relative-error fitting of linear responses needs every used response > 0 (mask the others)")
+    flat = np.flatnonzero(np.all(responses[mask] <= responses[mask].min(axis=0), axis=0))
+    if flat.size:
+        raise ValueError(f"responses: channel {'RGB'[flat[0]]} has the same value in every used measurement; nothing to fit")
     dtype = plan.options.smoothness.dtype
     return jnp.asarray(spectra, dtype), jnp.asarray(responses, dtype), jnp.asarray(mask)
 
