@@ -60,18 +60,22 @@ class ShadesOfGrey(Estimator):
     fallback: Float[Array, "3"]
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
-        weights = mask.astype(rgb.dtype)
-        count = jnp.sum(weights)
+        count = jnp.sum(mask)
+        masked = jnp.where(mask[:, None], rgb, 0.0)
         # Normalise by the brightest value first so rho^p neither overflows nor underflows.
-        peak = jnp.max(pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum))
-        safe_peak = jnp.where(peak > TINY, peak, 1.0)
+        peak = jnp.max(pairwise_reduce(masked, jnp.maximum))
+        usable = (count > 0) & (peak > TINY)
+        inverse_peak = jnp.where(usable, 1.0 / jnp.where(usable, peak, 1.0), 1.0)
         # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
         exponent = int(self.p) if float(self.p).is_integer() else self.p
-        powered = (rgb / safe_peak) ** exponent * weights[:, None]
-        mean = pairwise_reduce(powered, jnp.add) / jnp.maximum(count, 1.0)
+        mean = pairwise_reduce((masked * inverse_peak) ** exponent, jnp.add) / jnp.maximum(count, 1)
         positive = mean > 0
         root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
-        return with_fallback(2.0 * safe_peak * root, (count > 0) & (peak > TINY), self.fallback)
+        # The normalised mean lies in (0, 1], so the estimate is finite wherever ``usable``: no
+        # need for with_fallback's finiteness checks, which make XLA re-evaluate the p-th root in
+        # each of their fusions (measured 2x slower at 8 surfaces).
+        illuminant = jnp.where(usable, 2.0 * root / inverse_peak, self.fallback)
+        return Estimate(illuminant=illuminant, ok=usable)
 
 
 class MaxRGB(Estimator):
