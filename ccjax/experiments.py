@@ -319,7 +319,24 @@ class Reproduction:
                 f"{row['method']:<22}{row['column']:<14}{row['ours']:>10.4g}{row['thesis']:>10.4g}"
                 f"{row['relative_difference']:>+9.1%}  {row['ok_fraction']:.0%}"
             )
+        if self.rows:
+            differences = np.abs([row["relative_difference"] for row in self.rows])
+            within = ", ".join(f"{np.sum(differences <= band)}/{len(differences)} within ±{band:.0%}" for band in (0.10, 0.15, 0.20))
+            lines.append(f"cells: {within}; largest |diff| {np.max(differences):.1%}")
+        lines.extend(f"ordering: {line}" for line in self.orderings())
         return "\n".join(lines)
+
+    def orderings(self) -> list[str]:
+        """The thesis' orderings for this table (``thesis.ORDERINGS``), checked on our values."""
+        from ccjax import thesis
+
+        ours = {(row["method"], row["column"]): row["ours"] for row in self.rows}
+        lines = []
+        for better, worse, column in thesis.ORDERINGS.get(self.table, []):
+            if (better, column) in ours and (worse, column) in ours:
+                a, b = ours[(better, column)], ours[(worse, column)]
+                lines.append(f"{better} {a:.4g} < {worse} {b:.4g} at {column}: {'holds' if a < b else 'FAILS'}")
+        return lines
 
 
 def reproduce(

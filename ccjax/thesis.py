@@ -110,6 +110,14 @@ TABLE_6_1 = {  # Sony DXC-930, synthetic matte scenes, RMS (r,g) error over 1000
 
 TABLES["6.1"] = TABLE_6_1
 
+# Orderings the thesis draws from a table (§6.3 for Table 6.1, at 8 surfaces): (better, worse, column).
+ORDERINGS = {
+    "6.1": [
+        (f"{prefix}ECRULE-SCWIA-{n}", f"{prefix}ECRULE-MV", "rg@8") for prefix in ("", "ND-") for n in (9, 12, 18, 24)
+    ]
+    + [(f"{prefix}ECRULE-MV", f"{prefix}ECRULE-ICA", "rg@8") for prefix in ("", "ND-")],
+}
+
 # Table 10.1 (§10.3): rg RMS, 8 surfaces, matte and matte + specular worlds (the fluorescent column
 # comes with the fluorescence work). The thesis used discretisation remedy 1 (duplicate counts) for
 # this table, so its 3-D rows are ccjax's "-counts" labels; "*" cells are absent.

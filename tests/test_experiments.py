@@ -132,3 +132,20 @@ def test_cli_reproduce_json(barnard_world, capsys):
     payload = json.loads(capsys.readouterr().out)
     assert payload["table"] == "4.2" and {r["column"] for r in payload["rows"]} == set(experiments.STATISTICS)
     assert all(set(r) >= {"method", "column", "ours", "thesis"} for r in payload["rows"])
+
+
+def test_reproduction_text_counts_bands_and_checks_orderings():
+    def row(method, column, ours, thesis):
+        return {"method": method, "column": column, "ours": ours, "thesis": thesis, "relative_difference": ours / thesis - 1, "ok_fraction": 1.0}
+
+    rows = [
+        row("ECRULE-MV", "rg@8", 0.044, 0.044),  # 0 %
+        row("ECRULE-ICA", "rg@8", 0.0585, 0.050),  # +17 %
+        row("ECRULE-SCWIA-12", "rg@8", 0.0459, 0.040),  # +14.75 %, and worse than MV
+    ]
+    text = experiments.Reproduction("6.1", rows).text()
+    assert "1/3 within ±10%, 2/3 within ±15%, 3/3 within ±20%" in text
+    assert "ECRULE-MV 0.044 < ECRULE-ICA 0.0585 at rg@8: holds" in text
+    assert "ECRULE-SCWIA-12 0.0459 < ECRULE-MV 0.044 at rg@8: FAILS" in text
+    # Orderings whose rows were not run are not reported.
+    assert "SCWIA-9" not in text
