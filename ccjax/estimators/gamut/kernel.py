@@ -144,6 +144,11 @@ def _dot(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Array, "G M
     return v[:, None, 0] * coef[None, :, 0] + v[:, None, 1] * coef[None, :, 1] + v[:, None, 2] * coef[None, :, 2]
 
 
+def _dot_minor(xt: Float[Array, "3 G"], coef: Float[Array, "M 3"]) -> Float[Array, "M G"]:
+    # The same with the directions as the minor (vectorised) axis, for the short plane lists.
+    return coef[:, 0, None] * xt[None, 0] + coef[:, 1, None] * xt[None, 1] + coef[:, 2, None] * xt[None, 2]
+
+
 def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, "G"]:
     """``V_S``: the largest normalised origin-facet violation (<= -1 when nothing constrains)."""
     n_obs, k0, _ = obs.origin.shape
@@ -160,7 +165,10 @@ def inverse_extent(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, "G
 
 def cone_violation(x: Float[Array, "G 3"], planes: Float[Array, "L 3"]) -> Float[Array, "G"]:
     """``max_l n_l . x / |x|``: <= 0 inside the cone, else the sine of the angle outside it."""
-    return jnp.max(x @ planes.T, axis=-1) / jnp.linalg.norm(x, axis=-1)
+    # Directions minor (L, G): a (G, 3) layout strides over the RGB axis for only L ~ 12 planes
+    # (2.8x slower measured in isolation), and a K=3 matmul is slower still.
+    xt = x.T
+    return jnp.max(_dot_minor(xt, planes), axis=0) * jax.lax.rsqrt(jnp.sum(xt * xt, axis=0))
 
 
 def violations(model, v, valid, obs: Observations) -> tuple[Array, Array, Array, Array]:
