@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 
 from ccjax import metrics
 from ccjax.estimators import registry
-from ccjax.estimators.base import Estimator
+from ccjax.estimators.base import Estimator, estimate_batch
 from ccjax.scenes import SceneTables, resolve_options, sample_batch, scene_keys
 from ccjax.world import World
 
@@ -40,7 +40,7 @@ _SURFACES_PER_CHUNK = 1 << 22
 
 def scene_errors(model: Estimator, scenes, canonical_white) -> dict[str, jax.Array]:
     """Per-scene errors of one model on a scene batch, plus ``ok``."""
-    estimate = jax.vmap(model)(scenes.rgb, scenes.mask)
+    estimate = estimate_batch(model, scenes.rgb, scenes.mask)
     e, truth = estimate.illuminant, scenes.illuminant
     map_rg, map_rgb = metrics.mapping_errors(e, scenes.rgb, scenes.mask, scenes.canonical_rgb, canonical_white)
     return {

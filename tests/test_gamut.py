@@ -19,6 +19,7 @@ from scipy.optimize import linprog
 import gamut_oracle as oracle
 from ccjax import metrics
 from ccjax.estimators import gamut, registry
+from ccjax.estimators.base import estimate_batch
 from ccjax.estimators.gamut import kernel
 from ccjax.scenes import sample
 
@@ -410,3 +411,14 @@ def test_kernel_runs_in_x64(barnard_world, models):
         for name, estimate in out.items():
             assert estimate.illuminant.dtype == jnp.float64, name
             assert np.all(np.isfinite(np.asarray(estimate.illuminant))), name
+
+
+def test_estimate_batch_blocks_equal_one_vmap(barnard_world, models):
+    # 37 scenes: two blocks of 16 and a remainder of 5.
+    scenes = sample(jax.random.key(43), barnard_world, 37, 8)
+    estimator = gamut.GamutMapping(models[("ECRULE", None)], "SCWIA", 12.0)
+    assert type(estimator).block_size == 16
+    blocked = eqx.filter_jit(estimate_batch)(estimator, scenes.rgb, scenes.mask)
+    whole = eqx.filter_jit(lambda e, r, k: jax.vmap(e)(r, k))(estimator, scenes.rgb, scenes.mask)
+    np.testing.assert_allclose(np.asarray(blocked.illuminant), np.asarray(whole.illuminant), rtol=1e-5)
+    np.testing.assert_array_equal(np.asarray(blocked.ok), np.asarray(whole.ok))

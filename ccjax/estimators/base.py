@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
@@ -34,13 +35,32 @@ class Estimator(eqx.Module):
         input_kind: ``"surfaces"`` (a list of RGBs with a mask) or ``"image"`` (``(H, W, 3)``).
         estimates_brightness: True for 3-D methods whose estimate magnitude is meaningful (the
             RGB and R+G+B errors and the RGB mapping error apply to them).
+        block_size: scenes per vmapped block in :func:`estimate_batch` (``None``: one ``vmap``
+            over the whole batch). Kernels with a large per-scene working set set it so a
+            block's intermediates stay in cache.
     """
 
     input_kind: ClassVar[str] = "surfaces"
     estimates_brightness: ClassVar[bool] = False
+    block_size: ClassVar[int | None] = None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
         raise NotImplementedError
+
+
+def estimate_batch(model: Estimator, rgb: Float[Array, "B P 3"], mask: Bool[Array, "B P"]) -> Estimate:
+    """Estimate every scene of a batch: ``jax.vmap(model)(rgb, mask)``, computed in blocks.
+
+    With ``model.block_size`` set, blocks of that many scenes are vmapped and the blocks mapped
+    one after another (``jax.lax.map``), so each block's intermediates stay in cache: the gamut
+    kernel's fine grid is ~2,000 directions per scene, and one vmap over 4,096 scenes streams
+    every stage through memory (measured 1.2-1.4x slower at 8 and 64 surfaces). The results
+    are those of the plain vmap.
+    """
+    size = getattr(type(model), "block_size", None)
+    if size is None or rgb.shape[0] <= size:
+        return jax.vmap(model)(rgb, mask)
+    return jax.lax.map(lambda scene: model(*scene), (rgb, mask), batch_size=size)
 
 
 def pairwise_reduce(values: Float[Array, "P ..."], op) -> Float[Array, "..."]:

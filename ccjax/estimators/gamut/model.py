@@ -132,6 +132,7 @@ class GamutMapping(Estimator):
     selector: str = eqx.field(static=True)
     power: float = eqx.field(static=True, default=12.0)
     estimates_brightness = True
+    block_size = 16  # estimate_batch: the fine grid of 16 scenes stays in cache (measured 1.3x at 8 surfaces)
 
     def __check_init__(self):
         if self.selector not in SELECTORS:
