@@ -11,7 +11,7 @@ import functools
 
 from ccjax import metrics
 from ccjax.camera import Camera, cameras
-from ccjax.estimators import Estimate, Estimator, fit
+from ccjax.estimators import Estimate, Estimator, estimate_batch, fit
 from ccjax.scenes import Scenes, ShotNoise, Specular, sample
 from ccjax.spectra import WAVELENGTHS
 from ccjax.world import World
@@ -52,11 +52,10 @@ def estimate(method, rgb, mask=None, *, world: World | None = None) -> Estimate:
 @functools.cache
 def _compiled_runner():
     import equinox as eqx
-    import jax
 
     @eqx.filter_jit
     def run(model, rgb, mask):
-        return jax.vmap(model)(rgb, mask) if rgb.ndim == 3 else model(rgb, mask)
+        return estimate_batch(model, rgb, mask) if rgb.ndim == 3 else model(rgb, mask)
 
     return run
 
@@ -77,6 +76,7 @@ __all__ = [
     "cameras",
     "metrics",
     "estimate",
+    "estimate_batch",
     "fit",
     "sample",
 ]
