@@ -65,7 +65,7 @@ class ShadesOfGrey(Estimator):
         # Normalise by the brightest value first so rho^p neither overflows nor underflows.
         peak = jnp.max(pairwise_reduce(masked, jnp.maximum))
         usable = (count > 0) & (peak > TINY)
-        inverse_peak = jnp.where(usable, 1.0 / jnp.where(usable, peak, 1.0), 1.0)
+        inverse_peak = 1.0 / jnp.where(usable, peak, 1.0)
         # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
         exponent = int(self.p) if float(self.p).is_integer() else self.p
         mean = pairwise_reduce((masked * inverse_peak) ** exponent, jnp.add) / jnp.maximum(count, 1)
