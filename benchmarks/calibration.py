@@ -24,9 +24,10 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 
-from ccjax import calibration as cal  # noqa: E402
-from ccjax.camera import cameras  # noqa: E402
-import calibration_oracle as oracle  # noqa: E402
+import calibration_oracle as oracle
+
+from ccjax import calibration as cal
+from ccjax.camera import cameras
 
 F = dict(black=10.0, exp_rate=0.15)
 
@@ -68,7 +69,9 @@ def main() -> None:
     for k in range(3):
         oracle.fit_channel(L, raw[:, k], smoothness=cal.DEFAULT_SMOOTHNESS, **F)
     scipy_time = time.perf_counter() - start
-    print(f"  SciPy reference (lsq_linear bvls, 2 passes x 3 channels): {scipy_time:.3f} s  -> ratio scipy/ccjax {scipy_time / median:.1f}")
+    print(
+        f"  SciPy reference (lsq_linear bvls, 2 passes x 3 channels): {scipy_time:.3f} s  -> ratio scipy/ccjax {scipy_time / median:.1f}"
+    )
 
     chosen = [names[i % len(names)] for i in range(args.cameras)]
     sets = [cal.synthetic_calibration(name, seed=i) for i, name in enumerate(chosen)]
@@ -76,7 +79,9 @@ def main() -> None:
     responses = np.stack([s.raw for s in sets])
     masks = np.stack([s.usable for s in sets])
     truth = np.stack([s.sensors for s in sets])
-    print(f"{args.cameras} cameras ({len(set(chosen))} distinct curve sets, each with its own noise draw), one vmapped batch:")
+    print(
+        f"{args.cameras} cameras ({len(set(chosen))} distinct curve sets, each with its own noise draw), one vmapped batch:"
+    )
 
     def many():
         return cal.fit_sensors_batch(spectra, responses, mask=masks, chunk_size=args.cameras, linearisation="exp", **F)
@@ -85,10 +90,14 @@ def main() -> None:
     jax.block_until_ready(many())
     print(f"  first call (compile + fit): {time.perf_counter() - start:.2f} s")
     fits, median, best = _timed(many, max(1, args.repeats // 2))
-    print(f"  ccjax fit_sensors_batch after compilation: median {median:.2f} s ({median / args.cameras * 1e3:.1f} ms per camera)")
+    print(
+        f"  ccjax fit_sensors_batch after compilation: median {median:.2f} s ({median / args.cameras * 1e3:.1f} ms per camera)"
+    )
     errors = np.stack([cal.curve_error(fits.sensors[b], truth[b]) for b in range(args.cameras)])
-    print(f"  curve error vs truth over the batch: median {100 * np.median(errors):.2f} %, max {100 * errors.max():.2f} % of peak; "
-          f"converged {100 * float(np.mean(np.asarray(fits.converged))):.0f} % of channels")
+    print(
+        f"  curve error vs truth over the batch: median {100 * np.median(errors):.2f} %, max {100 * errors.max():.2f} % of peak; "
+        f"converged {100 * float(np.mean(np.asarray(fits.converged))):.0f} % of channels"
+    )
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory: {peak:.0f} MB")
 

@@ -26,10 +26,11 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 
-from ccjax import scenes  # noqa: E402
-from ccjax.estimators import correlation, registry  # noqa: E402
-from ccjax.world import World  # noqa: E402
-import correlation_oracle as oracle  # noqa: E402
+import correlation_oracle as oracle
+
+from ccjax import scenes
+from ccjax.estimators import correlation, registry
+from ccjax.world import World
 
 
 @eqx.filter_jit
@@ -54,7 +55,9 @@ def main() -> None:
     args = parser.parse_args()
     surfaces = [int(n) for n in args.surfaces.split(",")]
 
-    print(f"jax {jax.__version__}, backend {jax.default_backend()}, devices {jax.device_count()}, cpus {os.cpu_count()}")
+    print(
+        f"jax {jax.__version__}, backend {jax.default_backend()}, devices {jax.device_count()}, cpus {os.cpu_count()}"
+    )
     world = World.barnard1999()
     print(f"world: {world.name} {world.sizes()}")
 
@@ -105,7 +108,9 @@ def main() -> None:
             run_oracle(k)
         oracle_rate = len(rgb) / (time.perf_counter() - start)
         median, _ = _timed(lambda: _estimate(models[label], big.rgb, big.mask), args.repeats)
-        print(f"  NumPy loop oracle {label:<18} 8 surfaces: {oracle_rate:>8.1f} scenes/s -> ccjax / oracle {args.scenes / median / oracle_rate:.0f}x")
+        print(
+            f"  NumPy loop oracle {label:<18} 8 surfaces: {oracle_rate:>8.1f} scenes/s -> ccjax / oracle {args.scenes / median / oracle_rate:.0f}x"
+        )
 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory: {peak:.0f} MB")

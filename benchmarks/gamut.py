@@ -25,11 +25,12 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 
-from ccjax import experiments, scenes  # noqa: E402
-from ccjax.estimators import registry  # noqa: E402
-from ccjax.estimators.base import estimate_batch  # noqa: E402
-from ccjax.world import World  # noqa: E402
-import gamut_oracle as oracle  # noqa: E402
+import gamut_oracle as oracle
+
+from ccjax import experiments, scenes
+from ccjax.estimators import registry
+from ccjax.estimators.base import estimate_batch
+from ccjax.world import World
 
 BATCH = {8: 4096, 64: 1024, 1024: 128}
 ORACLE_SCENES = {8: 100, 64: 40, 1024: 5}
@@ -63,7 +64,9 @@ def main() -> None:
     args = parser.parse_args()
     surfaces = [int(n) for n in args.surfaces.split(",")]
 
-    print(f"jax {jax.__version__}, backend {jax.default_backend()}, cpus {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}")
+    print(
+        f"jax {jax.__version__}, backend {jax.default_backend()}, cpus {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}"
+    )
     world = World.barnard1999()
     labels = ("ECRULE-SCWIA-12", "CRULE-AVE")
     start = time.perf_counter()
@@ -72,7 +75,9 @@ def main() -> None:
 
     A, b = oracle.hull_halfspaces(np.asarray(world.canonical_rgb, np.float64))
     white = np.asarray(world.canonical_white, np.float64)
-    print(f"throughput, median of {args.repeats} warm runs (cpu = scenes per CPU-second of this process x {os.cpu_count()} cores):")
+    print(
+        f"throughput, median of {args.repeats} warm runs (cpu = scenes per CPU-second of this process x {os.cpu_count()} cores):"
+    )
     for n in surfaces:
         batch = scenes.sample(jax.random.key(n), world, BATCH[n], n)
         rates = {}
@@ -96,12 +101,21 @@ def main() -> None:
             if poly is not None:
                 white / poly.centroid
         rate = count / (time.perf_counter() - start)
-        print(f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {rate:>8.1f} scenes/s (one core) -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'] / rate:.0f}x")
+        print(
+            f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {rate:>8.1f} scenes/s (one core) -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'] / rate:.0f}x"
+        )
 
     if args.sweep_scenes:
         before = _peak_mb()
         start = time.perf_counter()
-        result = experiments.sweep(world, [("ECRULE-SCWIA-12", models["ECRULE-SCWIA-12"])], [8], args.sweep_scenes, chunk_size=8192, progress=False)
+        result = experiments.sweep(
+            world,
+            [("ECRULE-SCWIA-12", models["ECRULE-SCWIA-12"])],
+            [8],
+            args.sweep_scenes,
+            chunk_size=8192,
+            progress=False,
+        )
         elapsed = time.perf_counter() - start
         print(
             f"sweep of {args.sweep_scenes} scenes (8 surfaces, chunks of 8192): {elapsed:.1f} s, "

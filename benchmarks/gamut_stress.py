@@ -64,7 +64,9 @@ def main() -> None:
                 parts.append(jax.device_get(_chunk(model, tables, scene_keys(key, first, args.chunk), args.surfaces)))
             elapsed = time.perf_counter() - start
             merged = jax.tree_util.tree_map(lambda *x: np.concatenate([np.atleast_1d(v) for v in x]), *parts)
-            print(f"{label} ({args.scenes} scenes x {args.surfaces} surfaces, {elapsed:.0f} s, {args.scenes / elapsed:.0f} scenes/s incl. compile):")
+            print(
+                f"{label} ({args.scenes} scenes x {args.surfaces} surfaces, {elapsed:.0f} s, {args.scenes / elapsed:.0f} scenes/s incl. compile):"
+            )
             for name, values in merged.items():
                 n = args.scenes
                 nan = int(np.sum(values["nan"]))

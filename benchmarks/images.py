@@ -68,8 +68,10 @@ def main() -> None:
     image[:10, :10] = 1.0
     codes = np.round(image * 65535).astype(np.uint16)
     batch = np.stack([np.roll(codes, 17 * i, axis=1) for i in range(args.batch)])
-    print(f"jax {jax.__version__} on {jax.devices()[0].platform}, OpenCV {cv2.__version__}; "
-          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    print(
+        f"jax {jax.__version__} on {jax.devices()[0].platform}, OpenCV {cv2.__version__}; "
+        f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
+    )
 
     single = jax.jit(grey_world_correct)
     # One compiled call over the batch, image after image (lax.map): a 1-MP working set stays in
@@ -103,9 +105,15 @@ def main() -> None:
 
     megapixels = side * side / 1e6
     print(f"grey world estimate + correction, {side}x{side} ({megapixels:.2f} MP) uint16:")
-    print(f"  single image : ccjax {1e3 * ours_1:8.2f} ms   OpenCV {1e3 * theirs_1:8.2f} ms   ratio {ours_1 / theirs_1:5.2f}")
-    print(f"  batch of {args.batch:<3} : ccjax {1e3 * ours_b:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_b / theirs_b:5.2f}   (per image; one compiled lax.map call)")
-    print(f"  batch of {args.batch:<3} : ccjax {1e3 * ours_loop:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_loop / theirs_b:5.2f}   (per image; loop of the compiled single-image call)")
+    print(
+        f"  single image : ccjax {1e3 * ours_1:8.2f} ms   OpenCV {1e3 * theirs_1:8.2f} ms   ratio {ours_1 / theirs_1:5.2f}"
+    )
+    print(
+        f"  batch of {args.batch:<3} : ccjax {1e3 * ours_b:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_b / theirs_b:5.2f}   (per image; one compiled lax.map call)"
+    )
+    print(
+        f"  batch of {args.batch:<3} : ccjax {1e3 * ours_loop:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_loop / theirs_b:5.2f}   (per image; loop of the compiled single-image call)"
+    )
     print(f"  mean corrected colour, ccjax vs OpenCV: {angle:.3f} degrees apart")
 
     edge = GreyEdge(order=1, p=6.0, sigma=2.0, fallback=jnp.ones(3))

@@ -50,7 +50,9 @@ def main() -> None:
         seconds = timed(sampler, keys) * args.scenes / chunk
         print(f"{n_surfaces:>8}  {'sample scenes':<20}{seconds:>10.3f}{args.scenes / seconds:>12.3g} sc/s{'':>8}")
 
-        rgb = jnp.concatenate([sampler(scene_keys(jax.random.key(1), i * chunk, chunk)) for i in range(max(1, args.scenes // chunk))])
+        rgb = jnp.concatenate(
+            [sampler(scene_keys(jax.random.key(1), i * chunk, chunk)) for i in range(max(1, args.scenes // chunk))]
+        )
         rgb = rgb[: args.scenes]
         mask = jnp.ones(rgb.shape[:2], bool)
         triplets = rgb.shape[0] * rgb.shape[1]
@@ -67,7 +69,9 @@ def main() -> None:
             start = time.perf_counter()
             numpy_refs[label]()
             numpy_seconds = time.perf_counter() - start
-            print(f"{n_surfaces:>8}  {label:<20}{seconds:>10.4f}{triplets / seconds:>12.3g} rgb/s{gbps:>8.2f}{numpy_seconds:>11.4f}{numpy_seconds / seconds:>8.1f}x")
+            print(
+                f"{n_surfaces:>8}  {label:<20}{seconds:>10.4f}{triplets / seconds:>12.3g} rgb/s{gbps:>8.2f}{numpy_seconds:>11.4f}{numpy_seconds / seconds:>8.1f}x"
+            )
         del rgb, mask, rgb_np, mask_np
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"\npeak resident memory: {peak:.0f} MB")

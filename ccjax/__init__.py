@@ -74,9 +74,9 @@ __all__ = [
     "Specular",
     "World",
     "cameras",
-    "metrics",
     "estimate",
     "estimate_batch",
     "fit",
+    "metrics",
     "sample",
 ]

@@ -9,7 +9,7 @@ works on linear responses and never needs it.
 from __future__ import annotations
 
 import os
-from typing import Callable
+from collections.abc import Callable
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -40,7 +40,7 @@ class Camera(eqx.Module):
             raise ValueError(f"sensors: expected shape ({N_WAVELENGTHS}, 3), got {shape}")
 
     @classmethod
-    def from_array(cls, sensors, name: str = "custom") -> "Camera":
+    def from_array(cls, sensors, name: str = "custom") -> Camera:
         """Build a camera from a ``(101, 3)`` array, validating it (finite, non-negative)."""
         sensors = np.asarray(sensors, dtype=np.float64)
         if sensors.shape != (N_WAVELENGTHS, 3):
@@ -54,7 +54,7 @@ class Camera(eqx.Module):
         return cls(sensors=jnp.asarray(sensors, dtype=jnp.float32), name=name)
 
     @classmethod
-    def from_name(cls, name: str, data_dir: str | os.PathLike | None = None) -> "Camera":
+    def from_name(cls, name: str, data_dir: str | os.PathLike | None = None) -> Camera:
         """Look a camera up by name: embedded rawtoaces cameras first, then external data.
 
         Arguments:

@@ -12,12 +12,11 @@ import csv
 import io
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
@@ -126,7 +125,11 @@ class SweepResult:
             cells = []
             for n in self.surfaces:
                 per_scene = self.errors[method][n]
-                cells.append(f"{metrics.summarise(per_scene[statistic], summary):10.4f}" if statistic in per_scene else f"{'*':>10}")
+                cells.append(
+                    f"{metrics.summarise(per_scene[statistic], summary):10.4f}"
+                    if statistic in per_scene
+                    else f"{'*':>10}"
+                )
             ok = self.ok_fraction(method, self.surfaces[-1])
             lines.append(method.ljust(width) + "".join(cells) + f"  {ok:6.1%}")
         return "\n".join(lines)
@@ -207,7 +210,9 @@ def sweep(
         size = min(size, n_scenes)
         size = int(math.ceil(size / n_devices) * n_devices)
         plan.append((n, size, int(math.ceil(n_scenes / size))))
-    bar = tqdm(total=sum(chunks for _, _, chunks in plan), desc="sweep", unit="chunk", disable=not progress, leave=False)
+    bar = tqdm(
+        total=sum(chunks for _, _, chunks in plan), desc="sweep", unit="chunk", disable=not progress, leave=False
+    )
     for n, size, chunks in plan:
         stream = jax.random.fold_in(key, n)
         collected: list[list[dict]] = []
@@ -238,11 +243,22 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    labels = {"angular": "angular error (degrees)", "rg": "(r,g) error", "rgb": "RGB error", "brightness": "R+G+B error", "map_rg": "mapping (r,g) error", "map_rgb": "mapping RGB error"}
+    labels = {
+        "angular": "angular error (degrees)",
+        "rg": "(r,g) error",
+        "rgb": "RGB error",
+        "brightness": "R+G+B error",
+        "map_rg": "mapping (r,g) error",
+        "map_rgb": "mapping RGB error",
+    }
     fig, axes = plt.subplots(1, len(statistics), figsize=(5.5 * len(statistics), 4.2), squeeze=False)
     for ax, statistic in zip(axes[0], statistics):
         for method in result.methods:
-            points = [(n, result.value(method, n, statistic, summary)) for n in result.surfaces if statistic in result.errors[method][n]]
+            points = [
+                (n, result.value(method, n, statistic, summary))
+                for n in result.surfaces
+                if statistic in result.errors[method][n]
+            ]
             if points:
                 xs, ys = zip(*points)
                 ax.plot(np.log2(xs), ys, marker="o", label=method)
@@ -321,7 +337,9 @@ class Reproduction:
             )
         if self.rows:
             differences = np.abs([row["relative_difference"] for row in self.rows])
-            within = ", ".join(f"{np.sum(differences <= band)}/{len(differences)} within ±{band:.0%}" for band in (0.10, 0.15, 0.20))
+            within = ", ".join(
+                f"{np.sum(differences <= band)}/{len(differences)} within ±{band:.0%}" for band in (0.10, 0.15, 0.20)
+            )
             lines.append(f"cells: {within}; largest |diff| {np.max(differences):.1%}")
         lines.extend(f"ordering: {line}" for line in self.orderings())
         return "\n".join(lines)
@@ -372,8 +390,15 @@ def reproduce(
     rows = []
     for condition in PROTOCOLS[table]:
         result = sweep(
-            world, list(methods), [condition.n_surfaces], n_scenes, key,
-            specular=condition.specular, noise=condition.noise, clip=condition.clip, progress=progress,
+            world,
+            list(methods),
+            [condition.n_surfaces],
+            n_scenes,
+            key,
+            specular=condition.specular,
+            noise=condition.noise,
+            clip=condition.clip,
+            progress=progress,
         )
         for method in methods:
             for column, statistic in condition.columns.items():

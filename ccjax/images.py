@@ -214,13 +214,22 @@ def _read_raw(path: Path) -> tuple[np.ndarray, float, float]:
     try:
         import rawpy
     except ImportError:
-        raise ValueError(f"image: {path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')") from None
+        raise ValueError(
+            f"image: {path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')"
+        ) from None
     with rawpy.imread(str(path)) as raw:
         # Camera-native RGB, no white balance, no colour matrix, linear, one pixel per Bayer quad
         # (half_size: no demosaicing, so pixels are not interpolated across edges).
         pixels = raw.postprocess(
-            output_color=rawpy.ColorSpace.raw, gamma=(1, 1), no_auto_bright=True, output_bps=16,
-            use_camera_wb=False, use_auto_wb=False, user_wb=[1.0, 1.0, 1.0, 1.0], half_size=True, user_flip=0,
+            output_color=rawpy.ColorSpace.raw,
+            gamma=(1, 1),
+            no_auto_bright=True,
+            output_bps=16,
+            use_camera_wb=False,
+            use_auto_wb=False,
+            user_wb=[1.0, 1.0, 1.0, 1.0],
+            half_size=True,
+            user_flip=0,
             adjust_maximum_thr=0.0,  # keep the camera's white level (LibRaw would lower it to the data's maximum)
         )
     # LibRaw has subtracted the black level and scaled the white level to 65535 (give or take its
@@ -309,7 +318,9 @@ def read_image(
     clip_level = level * (_RAW_CLIP if default_saturation is not None and saturation is None else 1.0)
     clipped = np.any(values >= clip_level, axis=-1)
     if np.all(clipped):
-        raise ValueError(f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g})")
+        raise ValueError(
+            f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g})"
+        )
     rgb = np.maximum(values - np.float32(black_level), 0.0) / np.float32(level - black_level)
     return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth)
 
@@ -405,7 +416,9 @@ def hull_reduce(rgb: np.ndarray) -> np.ndarray:
         return rgb
 
 
-def segment(rgb: np.ndarray, usable: np.ndarray, min_size: int, rg_tolerance: float, brightness_tolerance: float) -> np.ndarray:
+def segment(
+    rgb: np.ndarray, usable: np.ndarray, min_size: int, rg_tolerance: float, brightness_tolerance: float
+) -> np.ndarray:
     """Region growing (§4.6; semantics of spec §10 item 30) and the mean RGB of each region.
 
     Seeds are taken in scan order; a region grows over 4-connected usable pixels while the
@@ -438,7 +451,9 @@ def segment(rgb: np.ndarray, usable: np.ndarray, min_size: int, rg_tolerance: fl
                     rr, gg, bb = r[ny][nx], g[ny][nx], brightness[ny][nx]
                     nr_lo, nr_hi, ng_lo, ng_hi = min(r_lo, rr), max(r_hi, rr), min(g_lo, gg), max(g_hi, gg)
                     nb_lo, nb_hi = min(b_lo, bb), max(b_hi, bb)
-                    if (nr_hi - nr_lo) ** 2 + (ng_hi - ng_lo) ** 2 <= rg_limit and nb_hi - nb_lo <= brightness_tolerance * nb_lo:
+                    if (nr_hi - nr_lo) ** 2 + (
+                        ng_hi - ng_lo
+                    ) ** 2 <= rg_limit and nb_hi - nb_lo <= brightness_tolerance * nb_lo:
                         r_lo, r_hi, g_lo, g_hi, b_lo, b_hi = nr_lo, nr_hi, ng_lo, ng_hi, nb_lo, nb_hi
                         free[ny, nx] = False
                         members.append((ny, nx))
@@ -468,7 +483,7 @@ class Preprocessing:
     max_rg_spread: float | None = None
 
     @classmethod
-    def parse(cls, name: str) -> "Preprocessing":
+    def parse(cls, name: str) -> Preprocessing:
         text = "seg-5-0.05-0.1" if name == "generic" else name
         number = r"(\d+(?:\.\d*)?|\.\d+)"
         match = re.fullmatch(rf"ave(\d+)(?:-u{number})?(?:-(cluster|hull))?", text)
@@ -477,7 +492,9 @@ class Preprocessing:
             return cls(name=name, block=int(match[1]), reduction=match[3], max_rg_spread=spread)
         match = re.fullmatch(rf"seg-(\d+)-{number}-{number}(?:-(hull))?", text)
         if match:
-            return cls(name=name, block=1, segmentation=(int(match[1]), float(match[2]), float(match[3])), reduction=match[4])
+            return cls(
+                name=name, block=1, segmentation=(int(match[1]), float(match[2]), float(match[3])), reduction=match[4]
+            )
         raise ValueError(
             f"preprocessing: unknown method {name!r}; expected ave<b>[-u<spread>][-cluster|-hull], "
             "seg-<min>-<rg>-<rel>[-hull] or generic"
@@ -513,7 +530,11 @@ def _bucket(count: int) -> int:
 
 
 def surfaces(
-    image: LinearImage, preprocessing: str | Preprocessing = DEFAULT_PREPROCESSING, *, dark: float = DEFAULT_DARK, pad: bool = True
+    image: LinearImage,
+    preprocessing: str | Preprocessing = DEFAULT_PREPROCESSING,
+    *,
+    dark: float = DEFAULT_DARK,
+    pad: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Estimator input of a surface-list method: ``(rgb (N, 3), mask (N,))``.
 
@@ -532,7 +553,9 @@ def surfaces(
     return rgb, mask
 
 
-def model_input(model: Estimator, image: LinearImage, preprocessing=DEFAULT_PREPROCESSING, *, dark: float = DEFAULT_DARK):
+def model_input(
+    model: Estimator, image: LinearImage, preprocessing=DEFAULT_PREPROCESSING, *, dark: float = DEFAULT_DARK
+):
     """What ``model`` is called with: the image and its unclipped mask for image-only methods,
     the preprocessed surface list otherwise."""
     if model.input_kind == "image":
@@ -545,7 +568,9 @@ def _run_model(model, rgb, mask) -> Estimate:
     return model(rgb, mask)
 
 
-def estimate_image(model: Estimator, image: LinearImage, preprocessing=DEFAULT_PREPROCESSING, *, dark: float = DEFAULT_DARK) -> Estimate:
+def estimate_image(
+    model: Estimator, image: LinearImage, preprocessing=DEFAULT_PREPROCESSING, *, dark: float = DEFAULT_DARK
+) -> Estimate:
     """Estimate the light of one image with a fitted model (jit-compiled per input size)."""
     rgb, mask = model_input(model, image, preprocessing, dark=dark)
     return _run_model(model, jnp.asarray(rgb), jnp.asarray(mask))
@@ -621,7 +646,9 @@ def estimate_pixels(model: Estimator, rgb: Float[Array, "H W 3"], mask: Bool[Arr
     return model(rgb.reshape(-1, 3), mask.reshape(-1))
 
 
-_XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]])
+_XYZ_TO_SRGB = np.array(
+    [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
+)
 
 
 def preview_matrix(world) -> np.ndarray:
@@ -630,7 +657,7 @@ def preview_matrix(world) -> np.ndarray:
     white exactly (a corrected image shows greys as grey)."""
     import colour
 
-    from ccjax.spectra import WAVELENGTHS, resample
+    from ccjax.spectra import resample
 
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     xyz_curves = resample(np.asarray(cmfs.wavelengths), np.asarray(cmfs.values), kind="sensor")
@@ -805,7 +832,10 @@ def cached_fit(label: str, world, **options) -> Estimator:
     from ccjax.estimators import registry
 
     registry.lookup(label)  # unknown labels fail before anything is hashed or written
-    return _cached(("fit", label, sorted(options.items()), _world_fingerprint(world)), lambda: registry.fit(label, world, **options))
+    return _cached(
+        ("fit", label, sorted(options.items()), _world_fingerprint(world)),
+        lambda: registry.fit(label, world, **options),
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -831,7 +861,9 @@ class ImageResults:
     def angular(self, method: str) -> np.ndarray:
         from ccjax.metrics import angular_error
 
-        return np.asarray(angular_error(jnp.asarray(self.estimates[method]), jnp.asarray(self.truth, jnp.float32)), np.float64)
+        return np.asarray(
+            angular_error(jnp.asarray(self.estimates[method]), jnp.asarray(self.truth, jnp.float32)), np.float64
+        )
 
     def summary(self, method: str) -> dict[str, float]:
         from ccjax.metrics import summarise
@@ -843,7 +875,9 @@ class ImageResults:
 
     def table(self) -> str:
         """Angular error (degrees) per method: the statistics of DESIGN.md §7."""
-        header = f"{'method':<24}{'mean':>8}{'median':>8}{'trimean':>9}{'best25':>8}{'worst25':>9}{'max':>8}{'not ok':>9}"
+        header = (
+            f"{'method':<24}{'mean':>8}{'median':>8}{'trimean':>9}{'best25':>8}{'worst25':>9}{'max':>8}{'not ok':>9}"
+        )
         lines = [f"angular error (degrees) over {len(self.paths)} images", header]
         for method in self.estimates:
             row = self.summary(method)
@@ -861,11 +895,16 @@ class ImageResults:
         for method, estimates in self.estimates.items():
             errors = self.angular(method) if self.truth is not None else [None] * len(self.paths)
             for path, rgb, ok, error in zip(self.paths, estimates, self.ok[method], errors):
-                rows.append({
-                    "path": path, "method": method, "illuminant": [float(v) for v in rgb],
-                    "rg": [float(v) for v in chromaticity(np.asarray(rgb, np.float64))], "ok": bool(ok),
-                    **({} if error is None else {"angular": float(error)}),
-                })
+                rows.append(
+                    {
+                        "path": path,
+                        "method": method,
+                        "illuminant": [float(v) for v in rgb],
+                        "rg": [float(v) for v in chromaticity(np.asarray(rgb, np.float64))],
+                        "ok": bool(ok),
+                        **({} if error is None else {"angular": float(error)}),
+                    }
+                )
         return rows
 
 

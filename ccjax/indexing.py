@@ -56,7 +56,7 @@ def intersection(tests: Float[Array, "Q b b"], models: Float[Array, "M b b"]) ->
     return overlap / jnp.maximum(jnp.sum(models, axis=(1, 2)), 1e-12)[None, :]
 
 
-def correct_ranks(scores: Float[Array, "Q M"], truth: Int[Array, "Q"]) -> Int[Array, "Q"]:
+def correct_ranks(scores: Float[Array, "Q M"], truth: Int[Array, " Q"]) -> Int[Array, " Q"]:
     """Rank (1 = best) of the correct model of each test: 1 + the number of models scoring
     strictly higher (ties resolved in the correct model's favour)."""
     own = jnp.take_along_axis(scores, truth[:, None], axis=1)
@@ -84,7 +84,9 @@ class ObjectImages(eqx.Module):
 
 
 @eqx.filter_jit
-def render_objects(key: PRNGKeyArray, world, n_objects: int, n_surfaces: int, n_lights: int, size: int, noise) -> ObjectImages:
+def render_objects(
+    key: PRNGKeyArray, world, n_objects: int, n_surfaces: int, n_lights: int, size: int, noise
+) -> ObjectImages:
     """Draw the objects and render database and query images (see the module docstring)."""
     tables = scenes.SceneTables.from_world(world)
     key_objects, key_lights = jax.random.split(key)
@@ -94,7 +96,9 @@ def render_objects(key: PRNGKeyArray, world, n_objects: int, n_surfaces: int, n_
         key_surf, key_layout, key_db, key_queries = jax.random.split(object_key, 4)
         surfaces = scenes._draw_without_replacement(key_surf, tables.surface_rgb.shape[1], n_surfaces)
         labels = scenes.mondrian_layout(key_layout, size, size, n_surfaces)
-        database, _ = scenes.render_mondrian(key_db, labels, tables.canonical_rgb[surfaces], tables.canonical_white, noise=noise)
+        database, _ = scenes.render_mondrian(
+            key_db, labels, tables.canonical_rgb[surfaces], tables.canonical_white, noise=noise
+        )
 
         def query(query_key, light):
             key_pose, key_render = jax.random.split(query_key)
@@ -102,7 +106,9 @@ def render_objects(key: PRNGKeyArray, world, n_objects: int, n_surfaces: int, n_
             posed = jnp.where(flips[0], labels[::-1], labels)
             posed = jnp.where(flips[1], posed[:, ::-1], posed)
             posed = jnp.where(flips[2], posed.T, posed)  # square images: transposition is a pose
-            image, _ = scenes.render_mondrian(key_render, posed, tables.surface_rgb[light, surfaces], tables.whites[light], noise=noise)
+            image, _ = scenes.render_mondrian(
+                key_render, posed, tables.surface_rgb[light, surfaces], tables.whites[light], noise=noise
+            )
             return image
 
         queries = jax.vmap(query)(jax.random.split(key_queries, n_lights), lights)
@@ -143,7 +149,9 @@ class IndexingResult:
                 f"{method:<24}{row['rg_error']:9.4f}{row['score1']:10.3f}{row['score2']:10.3f}{row['score3']:10.3f}"
                 f"{row['n1']:6d}{row['n2']:6d}{row['n3']:6d}"
             )
-        lines.append(f"Spearman correlation of Score(3) with rg error over the {len(self.rows)} rows: {self.spearman():.3f}")
+        lines.append(
+            f"Spearman correlation of Score(3) with rg error over the {len(self.rows)} rows: {self.spearman():.3f}"
+        )
         lines.append(f"Spearman correlation of Score(1) with rg error: {self.spearman('score1'):.3f}")
         return "\n".join(lines)
 
@@ -156,7 +164,12 @@ def _estimates(model, queries: np.ndarray, preprocessing, dark: float) -> tuple[
     if model.input_kind == "image":
         rgb, mask = jnp.asarray(flat), jnp.ones(flat.shape[:3], bool)
     else:
-        lists = [image_io.surfaces(image_io.LinearImage(image, np.zeros(image.shape[:2], bool)), preprocessing, dark=dark, pad=False) for image in flat]
+        lists = [
+            image_io.surfaces(
+                image_io.LinearImage(image, np.zeros(image.shape[:2], bool)), preprocessing, dark=dark, pad=False
+            )
+            for image in flat
+        ]
         size = image_io._bucket(max(len(data) for data, _ in lists))
         rgb = np.zeros((len(lists), size, 3), np.float32)
         mask = np.zeros((len(lists), size), bool)
@@ -237,7 +250,9 @@ def run_indexing(
         else:
             flat, _ = _estimates(fit(label, world), queries, preprocessing, dark)
             estimates = flat.reshape(n_objects, n_lights, 3)
-        ranks, errors = _scores(rendered.queries, whites, jnp.asarray(estimates), world.canonical_white, database_histograms, dark)
+        ranks, errors = _scores(
+            rendered.queries, whites, jnp.asarray(estimates), world.canonical_white, database_histograms, dark
+        )
         (s1, s2, s3), (n1, n2, n3) = rank_scores(ranks)
         rms = float(np.sqrt(np.mean(np.asarray(errors, np.float64) ** 2)))
         result.rows[label] = {"rg_error": rms, "score1": s1, "score2": s2, "score3": s3, "n1": n1, "n2": n2, "n3": n3}

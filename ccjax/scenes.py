@@ -70,7 +70,7 @@ class SceneTables(eqx.Module):
     canonical_white: Float[Array, "3"]
 
     @classmethod
-    def from_world(cls, world: World) -> "SceneTables":
+    def from_world(cls, world: World) -> SceneTables:
         sensors = world.camera.sensors
         lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
         surface_rgb = jnp.einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
@@ -82,7 +82,7 @@ class SceneTables(eqx.Module):
         )
 
 
-def _draw_without_replacement(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, "P"]:
+def _draw_without_replacement(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, " P"]:
     if n_draws <= _FLOYD_MAX_SURFACES:
         # Floyd's algorithm: step i draws t in [0, n - P + i]; a repeat is replaced by n - P + i.
         ceilings = n_population - n_draws + jnp.arange(n_draws)
@@ -227,7 +227,7 @@ def _row_patch_counts(n_patches: int) -> list[int]:
     return [n_patches // n_rows + (1 if row < n_patches % n_rows else 0) for row in range(n_rows)]
 
 
-def _proportions(key: PRNGKeyArray, count: int) -> Float[Array, "N"]:
+def _proportions(key: PRNGKeyArray, count: int) -> Float[Array, " N"]:
     # Shares 0.25 + U(0, 1), normalised: every patch visible, sizes differ by up to a factor 5
     # (a Dirichlet draw would do too, but its gamma sampler is slow to compile).
     shares = 0.25 + jax.random.uniform(key, (count,))
@@ -290,7 +290,9 @@ def render_mondrian(
     if specular is not None:
         is_specular = jax.random.uniform(key_spec, (n_patches,)) < specular.probability
         amount = jnp.where(is_specular, jax.random.uniform(key_amount, (n_patches,)) * specular.max_amount, 0.0) * shade
-        yy, xx = jnp.meshgrid(jnp.arange(height, dtype=image.dtype), jnp.arange(width, dtype=image.dtype), indexing="ij")
+        yy, xx = jnp.meshgrid(
+            jnp.arange(height, dtype=image.dtype), jnp.arange(width, dtype=image.dtype), indexing="ij"
+        )
         one_hot = labels[..., None] == jnp.arange(n_patches)  # (H, W, P)
         area = jnp.maximum(jnp.sum(one_hot, axis=(0, 1)), 1)
         centre_y = jnp.sum(one_hot * yy[..., None], axis=(0, 1)) / area
@@ -334,8 +336,15 @@ def mondrian_batch(
         surfaces = _draw_without_replacement(key_surf, tables.surface_rgb.shape[1], n_patches)
         labels = mondrian_layout(key_layout, height, width, n_patches)
         image, white = render_mondrian(
-            key_render, labels, tables.surface_rgb[light, surfaces], tables.whites[light],
-            shading=shading, specular=specular, noise=noise, clip=clip, normalise=normalise,
+            key_render,
+            labels,
+            tables.surface_rgb[light, surfaces],
+            tables.whites[light],
+            shading=shading,
+            specular=specular,
+            noise=noise,
+            clip=clip,
+            normalise=normalise,
         )
         return MondrianImages(image=image, illuminant=white, labels=labels, surfaces=surfaces)
 
@@ -387,4 +396,6 @@ def sample_mondrians(
     specular, noise = resolve_options(specular, noise, clip)
     tables = SceneTables.from_world(world)
     keys = scene_keys(key, 0, n_images)
-    return mondrian_batch(keys, tables, height, width, n_patches, (float(low), float(high)), specular, noise, clip, normalise)
+    return mondrian_batch(
+        keys, tables, height, width, n_patches, (float(low), float(high)), specular, noise, clip, normalise
+    )

@@ -28,8 +28,8 @@ from __future__ import annotations
 import json
 import re
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import equinox as eqx
 import jax
@@ -217,13 +217,13 @@ def database_sharpening(source, target) -> np.ndarray:
 
 
 def average_sharpening(world: World) -> np.ndarray:
-    """"ave" sharpening (§5.2): database sharpening for the mean normalised training illuminant."""
+    """ "ave" sharpening (§5.2): database sharpening for the mean normalised training illuminant."""
     mean_light = jnp.mean(world.train_illuminants, axis=0)
     return database_sharpening(database_responses(world, mean_light), world.canonical_rgb)
 
 
 def optimal_sharpening(world: World, spectra: Float[Array, "J 101"] | None = None) -> np.ndarray:
-    """"opt" sharpening (§5.2): one database sharpening per illuminant (the scene's true light).
+    """ "opt" sharpening (§5.2): one database sharpening per illuminant (the scene's true light).
 
     Returns:
         ``(J, 3, 3)`` transforms for ``spectra`` (default: the world's test illuminants).
@@ -276,7 +276,7 @@ class DatabaseStatistics(eqx.Module):
     canonical_square: Float[Array, ""]
 
     @classmethod
-    def of(cls, train, canonical) -> "DatabaseStatistics":
+    def of(cls, train, canonical) -> DatabaseStatistics:
         return cls(
             gram=jnp.einsum("isa,isb->iab", train, train),
             cross=jnp.einsum("isa,sb->iab", train, canonical),
@@ -512,7 +512,7 @@ class Sharpened(Estimator):
     def estimates_brightness(self) -> bool:  # type: ignore[override]
         return self.plain.estimates_brightness
 
-    def run(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> SharpenedEstimate:
+    def run(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> SharpenedEstimate:
         sharp = rgb @ self.transform
         inner = self.inner(sharp, mask)
         plain = self.plain(rgb, mask)
@@ -584,7 +584,9 @@ def sharpened(
     # constraint, w_c# / e#) and the sharpened canonical gamut, whose hull must keep the origin as
     # its vertex in the positive octant (with negative points the feasible maps become unbounded
     # and gamut estimates collapse to near-black lights).
-    calibration_ok = jnp.all(sharp.train_whites > 0) & jnp.all(sharp.canonical_white > 0) & jnp.all(sharp.canonical_rgb > 0)
+    calibration_ok = (
+        jnp.all(sharp.train_whites > 0) & jnp.all(sharp.canonical_white > 0) & jnp.all(sharp.canonical_rgb > 0)
+    )
     plain = fit(world) if plain is None else plain
     try:
         inner = fit(sharp)
@@ -615,11 +617,11 @@ class Chapter5Scenes(eqx.Module):
     the same light and surfaces as scene ``k`` of a matte sweep with the same key and size.
     """
 
-    light: Int[Array, "B"]
+    light: Int[Array, " B"]
     surfaces: Int[Array, "B P"]
 
     @classmethod
-    def draw(cls, key, n_lights: int, n_reflectances: int, n_scenes: int, n_surfaces: int) -> "Chapter5Scenes":
+    def draw(cls, key, n_lights: int, n_reflectances: int, n_scenes: int, n_surfaces: int) -> Chapter5Scenes:
         from ccjax.scenes import _draw_without_replacement, scene_keys
 
         keys = scene_keys(jax.random.fold_in(key, n_surfaces), 0, n_scenes)
@@ -642,7 +644,7 @@ class Chapter5Data(eqx.Module):
     canonical_white: Float[Array, "3"]
 
     @classmethod
-    def of(cls, world: World) -> "Chapter5Data":
+    def of(cls, world: World) -> Chapter5Data:
         return cls(
             database=database_responses(world, world.test_illuminants),
             canonical=world.canonical_rgb,
@@ -712,7 +714,11 @@ def _run_per_scene(label: str, world: World, data, scenes, transforms, plain):
 
     try:
         return jax.jit(jax.vmap(one))(scenes.light, scenes.surfaces, transforms)
-    except (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayConversionError, jax.errors.TracerBoolConversionError):
+    except (
+        jax.errors.ConcretizationTypeError,
+        jax.errors.TracerArrayConversionError,
+        jax.errors.TracerBoolConversionError,
+    ):
         pass
     lights = np.asarray(scenes.light)
     n = lights.shape[0]
@@ -840,11 +846,16 @@ class Reproduction51:
     pending: list[str]
 
     def to_json(self) -> str:
-        return json.dumps({"table": "5.1", "rows": self.rows, "checks": self.checks, "info": self.info, "pending": self.pending}, indent=1)
+        return json.dumps(
+            {"table": "5.1", "rows": self.rows, "checks": self.checks, "info": self.info, "pending": self.pending},
+            indent=1,
+        )
 
     def text(self) -> str:
         lines = ["Table 5.1 (Sony DXC-930): ours vs thesis (mapping errors in thesis units, white = 255)"]
-        lines.append(f"{'method':<15}{'sharpening':<11}{'column':<9}{'ours':>10}{'thesis':>10}{'diff':>9}{'reverted':>10}{'thesis':>8}")
+        lines.append(
+            f"{'method':<15}{'sharpening':<11}{'column':<9}{'ours':>10}{'thesis':>10}{'diff':>9}{'reverted':>10}{'thesis':>8}"
+        )
         for row in self.rows:
             diff = "" if row["relative_difference"] is None else f"{row['relative_difference']:+9.1%}"
             lines.append(
@@ -867,12 +878,16 @@ def _behaviour_checks(values: dict, worst: dict) -> list[dict]:
     for method in ("BEST-DIAGONAL", "ACTUAL"):
         if (method, "ave") in values and (method, "none") in values:
             a, n = values[(method, "ave")], values[(method, "none")]
-            checks.append({"check": f"{method}: ave worse than none", "holds": a > n, "evidence": f"{a:.2f} vs {n:.2f}"})
+            checks.append(
+                {"check": f"{method}: ave worse than none", "holds": a > n, "evidence": f"{a:.2f} vs {n:.2f}"}
+            )
     for method in ("GW", "DB-GW", "RETINEX"):
         if (method, "opt") in values and (method, "none") in values:
             o, n = values[(method, "opt")], values[(method, "none")]
             evidence = f"{o:.1f} vs {n:.1f} ({o / n:.2f}x); worst scene {worst[(method, 'opt')]:.1f} vs {worst[(method, 'none')]:.1f}"
-            checks.append({"check": f"{method}: opt mapping error >= 3x none", "holds": o >= 3 * n, "evidence": evidence})
+            checks.append(
+                {"check": f"{method}: opt mapping error >= 3x none", "holds": o >= 3 * n, "evidence": evidence}
+            )
     return checks
 
 

@@ -164,7 +164,7 @@ class World(eqx.Module):
         camera: Camera,
         seed: int = 0,
         name: str = "custom",
-    ) -> "World":
+    ) -> World:
         """Build a world from source spectra by the thesis' illuminant-set procedure.
 
         Arguments:
@@ -183,7 +183,7 @@ class World(eqx.Module):
         sensors = np.asarray(camera.sensors, dtype=np.float64)
         train = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TRAIN_CELL, seed=seed)
         test = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TEST_CELL, seed=seed + 1)
-        as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)  # noqa: E731
+        as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)
         return cls(
             reflectances=as32(reflectances),
             train_illuminants=as32(train.spectra),
@@ -194,7 +194,7 @@ class World(eqx.Module):
         )
 
     @classmethod
-    def default(cls, camera: str | Camera = "Canon EOS 5D Mark II", *, seed: int = 0) -> "World":
+    def default(cls, camera: str | Camera = "Canon EOS 5D Mark II", *, seed: int = 0) -> World:
         """The default world, from embedded data only (DESIGN.md §8, binding defaults).
 
         SFU 1993 reflectances; canonical CIE D65; sources CIE A, D50, D55, D65, D75, FL2, FL7,
@@ -218,7 +218,7 @@ class World(eqx.Module):
         )
 
     @classmethod
-    def barnard1999(cls, data_dir: str | os.PathLike | None = None, *, seed: int = 0) -> "World":
+    def barnard1999(cls, data_dir: str | os.PathLike | None = None, *, seed: int = 0) -> World:
         """The thesis world (Barnard 1999 §4.4): Sony DXC-930, SFU reflectances, SFU illuminants.
 
         The 11 lab lights are placed first, the other 88 SFU lights into empty cells, then random

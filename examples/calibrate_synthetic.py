@@ -24,14 +24,20 @@ with tempfile.NamedTemporaryFile(suffix=".csv") as f:
 # fitted jointly (b = camera black given, C searched per channel).
 fit = cal.fit_sensors(data.spectra, data.responses, linearisation="exp", black=10.0)
 print(f"solver: {fit.status.solver}; converged {np.asarray(fit.status.converged).tolist()}")
-print(f"fitted F: a0 = {np.round(fit.linearisation.a0, 2).tolist()}, a1 = {np.round(fit.linearisation.a1, 2).tolist()}, "
-      f"C = {np.round(fit.linearisation.exp_rate, 3).tolist()} (true 12, 4, 0.15)")
-print(f"RMS relative error {100 * float(fit.errors.rms_relative):.2f} %, curve error vs truth "
-      f"{np.round(100 * cal.curve_error(fit.sensors, truth.sensors), 2).tolist()} % of peak")
+print(
+    f"fitted F: a0 = {np.round(fit.linearisation.a0, 2).tolist()}, a1 = {np.round(fit.linearisation.a1, 2).tolist()}, "
+    f"C = {np.round(fit.linearisation.exp_rate, 3).tolist()} (true 12, 4, 0.15)"
+)
+print(
+    f"RMS relative error {100 * float(fit.errors.rms_relative):.2f} %, curve error vs truth "
+    f"{np.round(100 * cal.curve_error(fit.sensors, truth.sensors), 2).tolist()} % of peak"
+)
 
 baseline = cal.pseudo_inverse(data.spectra, np.asarray(fit.linear))
-print(f"pseudo-inverse: RMS relative error {100 * float(baseline.errors.rms_relative):.2f} %, curve error "
-      f"{np.round(100 * cal.curve_error(baseline.sensors, truth.sensors), 1).tolist()} % of peak")
+print(
+    f"pseudo-inverse: RMS relative error {100 * float(baseline.errors.rms_relative):.2f} %, curve error "
+    f"{np.round(100 * cal.curve_error(baseline.sensors, truth.sensors), 1).tolist()} % of peak"
+)
 
 # The fitted camera plugs into the rest of ccjax (e.g. ccjax.World.default(camera=fit.camera)).
 print(fit.camera.name, fit.camera.sensors.shape)

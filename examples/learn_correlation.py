@@ -51,7 +51,9 @@ def learn(model, start, tables, *, steps, batch, surfaces, learning_rate, key):
     logits, state, losses = start, optimiser.init(start), []
     for index in range(steps):
         # Cycle through the surface counts so the matrix is trained for all of them.
-        logits, state, loss = step(logits, state, scene_keys(key, index * batch, batch), surfaces[index % len(surfaces)])
+        logits, state, loss = step(
+            logits, state, scene_keys(key, index * batch, batch), surfaces[index % len(surfaces)]
+        )
         losses.append(float(loss))
     return jax.nn.log_softmax(logits, axis=0), np.asarray(losses)
 
@@ -70,13 +72,22 @@ def main() -> None:
     counted = registry.fit("C-by-C-MMSE", world)
     # Training scenes are drawn under the training illuminants only.
     training = SceneTables.from_world(dataclasses.replace(world, test_illuminants=world.train_illuminants))
-    starts = {"learned (uniform start)": jnp.zeros_like(counted.log_probability), "fine-tuned (counted start)": counted.log_probability}
+    starts = {
+        "learned (uniform start)": jnp.zeros_like(counted.log_probability),
+        "fine-tuned (counted start)": counted.log_probability,
+    }
     matrices = {"counted (thesis)": counted}
     for name, start in starts.items():
         begin = time.perf_counter()
         learned, losses = learn(
-            counted, start, training, steps=args.steps, batch=args.batch, surfaces=[int(n) for n in args.surfaces.split(",")],
-            learning_rate=args.learning_rate, key=jax.random.key(2024),
+            counted,
+            start,
+            training,
+            steps=args.steps,
+            batch=args.batch,
+            surfaces=[int(n) for n in args.surfaces.split(",")],
+            learning_rate=args.learning_rate,
+            key=jax.random.key(2024),
         )
         print(
             f"{name}: {args.steps} steps x {args.batch} scenes in {time.perf_counter() - begin:.0f} s; "
@@ -85,7 +96,9 @@ def main() -> None:
         matrices[name] = dataclasses.replace(counted, log_probability=learned)
 
     result = sweep(world, list(matrices.items()), [4, 8, 16, 32], args.scenes, jax.random.key(7), progress=False)
-    print(f"\nheld-out: {args.scenes} scenes per surface count under the {world.test_illuminants.shape[0]} test illuminants ({world.name})")
+    print(
+        f"\nheld-out: {args.scenes} scenes per surface count under the {world.test_illuminants.shape[0]} test illuminants ({world.name})"
+    )
     print(result.table("rg"))
     print()
     print(result.table("angular"))

@@ -33,12 +33,16 @@ def main() -> None:
     world = World.barnard1999() if args.world == "barnard1999" else World.default(args.camera or "Canon EOS 5D Mark II")
     start = time.perf_counter()
     new = sharpening.new_sharpening(world)
-    print(f"world {world.name}: new method lambda_P {new.lambda_p:g}, {new.iterations} iterations ({time.perf_counter() - start:.0f} s)")
+    print(
+        f"world {world.name}: new method lambda_P {new.lambda_p:g}, {new.iterations} iterations ({time.perf_counter() - start:.0f} s)"
+    )
     rows = []
     for label, loss in (("GW", "mapping"), (args.nonlinear, "angular")):
         learned = sharpening.learned_sharpening(world, label, loss, steps=args.steps)
         head, tail = np.mean(learned.losses[:20]), np.mean(learned.losses[-20:])
-        print(f"{label}: learned on {loss} in {learned.seconds:.0f} s; training loss (mean of first/last 20 steps) {head:.3f} -> {tail:.3f}")
+        print(
+            f"{label}: learned on {loss} in {learned.seconds:.0f} s; training loss (mean of first/last 20 steps) {head:.3f} -> {tail:.3f}"
+        )
         print(f"  learned T = {np.round(learned.transform, 4).tolist()}")
         transforms = {"none": np.eye(3), "new": new.transform, "learned": learned.transform}
         scores = sharpening.evaluate_transforms(world, label, transforms, args.scenes, key=jax.random.key(0))
@@ -47,7 +51,9 @@ def main() -> None:
     print(f"\nheld-out: {args.scenes} scenes of 8 surfaces under test lights (RMS; mapping error in thesis units)")
     print(f"{'estimator':<22}{'trained on':<11}{'T':<9}{'mapping':>10}{'angle':>8}{'reverted':>10}")
     for label, loss, name, score in rows:
-        print(f"{label:<22}{loss:<11}{name:<9}{score['map_rgb']:>10.2f}{score['angular']:>8.3f}{score['reverted']:>10d}")
+        print(
+            f"{label:<22}{loss:<11}{name:<9}{score['map_rgb']:>10.2f}{score['angular']:>8.3f}{score['reverted']:>10d}"
+        )
 
 
 if __name__ == "__main__":

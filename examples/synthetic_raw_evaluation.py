@@ -39,18 +39,35 @@ def main() -> None:
 
     world = World.default(camera=args.camera)
     batch = scenes.sample_mondrians(
-        jax.random.key(args.seed), world, args.images, height=args.size, width=args.size,
-        n_patches=args.patches, shading=(0.3, 1.0), noise=scenes.ShotNoise(a=1e-4, b=0.0),
+        jax.random.key(args.seed),
+        world,
+        args.images,
+        height=args.size,
+        width=args.size,
+        n_patches=args.patches,
+        shading=(0.3, 1.0),
+        noise=scenes.ShotNoise(a=1e-4, b=0.0),
     )
     with tempfile.TemporaryDirectory() as scratch:
         folder = Path(args.out or scratch) / "images"
         truth = images.write_dataset(folder, batch.image, batch.illuminant)
         report = Path(scratch) / "evaluate.json"
         print(f"wrote {args.images} images of {args.size}x{args.size} ({args.camera}) to {folder}")
-        status = cli.main([
-            "evaluate", str(folder), "--ground-truth", str(truth), "--methods", args.methods,
-            "--camera", args.camera, "--json", str(report), "--no-progress",
-        ])
+        status = cli.main(
+            [
+                "evaluate",
+                str(folder),
+                "--ground-truth",
+                str(truth),
+                "--methods",
+                args.methods,
+                "--camera",
+                args.camera,
+                "--json",
+                str(report),
+                "--no-progress",
+            ]
+        )
         if status != 0:
             raise SystemExit(status)
         records = json.loads(report.read_text())["images"]

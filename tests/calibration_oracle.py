@@ -63,7 +63,14 @@ def _bounded_least_squares(A, b, lower, upper):
     """lsq_linear, with unknowns whose bounds coincide (R = 0 outside the range) eliminated."""
     fixed = lower == upper
     x = np.where(fixed, lower, 0.0)
-    reduced = lsq_linear(A[:, ~fixed], b - A[:, fixed] @ x[fixed], bounds=(lower[~fixed], upper[~fixed]), method="bvls", tol=1e-13, max_iter=10000)
+    reduced = lsq_linear(
+        A[:, ~fixed],
+        b - A[:, fixed] @ x[fixed],
+        bounds=(lower[~fixed], upper[~fixed]),
+        method="bvls",
+        tol=1e-13,
+        max_iter=10000,
+    )
     x[~fixed] = reduced.x
     return x
 

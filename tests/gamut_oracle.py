@@ -100,7 +100,9 @@ def chebyshev_centre(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     norms = np.linalg.norm(A, axis=1)
     cost = np.zeros(4)
     cost[3] = -1.0
-    result = linprog(cost, A_ub=np.hstack([A, norms[:, None]]), b_ub=b, bounds=[(None, None)] * 3 + [(0, None)], method="highs")
+    result = linprog(
+        cost, A_ub=np.hstack([A, norms[:, None]]), b_ub=b, bounds=[(None, None)] * 3 + [(0, None)], method="highs"
+    )
     if result.status != 0:
         return np.zeros(3), 0.0
     return result.x[:3], float(result.x[3])
@@ -122,7 +124,9 @@ def polytope(A: np.ndarray, b: np.ndarray, min_radius: float = 1e-7) -> Polytope
         tetra = abs(np.linalg.det(np.array([p1 - apex, p2 - apex, p3 - apex]))) / 6.0
         volume += tetra
         moment += tetra * (apex + p1 + p2 + p3) / 4.0
-    return Polytope(vertices=hull.points[hull.vertices], volume=volume, centroid=moment / volume, equations=hull.equations)
+    return Polytope(
+        vertices=hull.points[hull.vertices], volume=volume, centroid=moment / volume, equations=hull.equations
+    )
 
 
 def max_log_product(poly: Polytope) -> np.ndarray:
@@ -153,7 +157,9 @@ def ray_extent(poly: Polytope, maps: np.ndarray) -> np.ndarray:
     return np.where(enters, ratio.min(axis=1), 0.0)
 
 
-def direction_quadrature(poly: Polytope, white: np.ndarray, polygon: np.ndarray | None, step: float = 5e-4, pad: float = 0.02):
+def direction_quadrature(
+    poly: Polytope, white: np.ndarray, polygon: np.ndarray | None, step: float = 5e-4, pad: float = 0.02
+):
     """A fine (r,g) grid of illuminant directions covering the feasible ones, with their ``T``.
 
     Returns ``(rg (G, 2), T (G,))``, with ``T = 0`` outside the (surface, and if ``polygon`` is
@@ -176,7 +182,12 @@ def direction_quadrature(poly: Polytope, white: np.ndarray, polygon: np.ndarray 
     if polygon is not None:
         extent = np.where(in_polygon(polygon, rg), extent, 0.0)
     feasible = extent > 0
-    edge = (rg[:, 0] < lo[0] + 2 * step) | (rg[:, 0] > hi[0] - 2 * step) | (rg[:, 1] < lo[1] + 2 * step) | (rg[:, 1] > hi[1] - 2 * step)
+    edge = (
+        (rg[:, 0] < lo[0] + 2 * step)
+        | (rg[:, 0] > hi[0] - 2 * step)
+        | (rg[:, 1] < lo[1] + 2 * step)
+        | (rg[:, 1] > hi[1] - 2 * step)
+    )
     if np.any(feasible & edge):
         raise RuntimeError("feasible directions reach the quadrature grid's edge; increase pad")
     return rg, extent

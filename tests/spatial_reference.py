@@ -54,7 +54,11 @@ def grey_edge_reference(image: np.ndarray, mask: np.ndarray, order: int, p: floa
         elif order == 1:
             d = np.sqrt(_derivative(f, sigma, 0, 1) ** 2 + _derivative(f, sigma, 1, 0) ** 2)
         else:
-            d = np.sqrt(_derivative(f, sigma, 0, 2) ** 2 + 4 * _derivative(f, sigma, 1, 1) ** 2 + _derivative(f, sigma, 2, 0) ** 2)
+            d = np.sqrt(
+                _derivative(f, sigma, 0, 2) ** 2
+                + 4 * _derivative(f, sigma, 1, 1) ** 2
+                + _derivative(f, sigma, 2, 0) ** 2
+            )
         values = d[valid]
         estimate[c] = values.max() if math.isinf(p) else np.mean(values**p) ** (1.0 / p)
     return estimate

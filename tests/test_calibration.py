@@ -8,15 +8,15 @@ synthetic data set with row masks, so each solver compiles once per dtype.
 
 from __future__ import annotations
 
+import calibration_oracle as oracle
+import jax
 import numpy as np
 import pytest
+from conftest import require_external_data
 
-import jax
 from ccjax import calibration as cal
 from ccjax.calibration import experiment, files
 from ccjax.cli import main as cli_main
-import calibration_oracle as oracle
-from conftest import require_external_data
 
 TRUE_F = dict(black=10.0, exp_rate=0.15)
 
@@ -70,7 +70,12 @@ def test_bounded_fits_match_lsq_linear_x64(synthetic, linear_data):
         assert _relative(smooth.sensors[:, k], want) <= 1e-4
         want, _, _ = oracle.fit_channel(L, r, smoothness=0.05, support=support[k])
         assert _relative(ranged.sensors[:, k], want) <= 1e-4
-        assert np.all(np.asarray(ranged.sensors[:, k])[(oracle.WAVELENGTHS < support[k, 0]) | (oracle.WAVELENGTHS > support[k, 1])] == 0)
+        assert np.all(
+            np.asarray(ranged.sensors[:, k])[
+                (oracle.WAVELENGTHS < support[k, 0]) | (oracle.WAVELENGTHS > support[k, 1])
+            ]
+            == 0
+        )
         want, _, _ = oracle.fit_channel(L, r, smoothness=0.0, relative=False)
         assert _relative(nnls.sensors[:, k], want) <= 1e-4
         want, _, _ = oracle.fit_channel(L, r, smoothness=0.05, relative=False, positive=False)
@@ -146,10 +151,16 @@ def test_joint_linearisation_recovers_random_a0_a1():
     truth_a1 = np.repeat(draws[:, 1:], 3, axis=1)
     for noisy in (False, True):
         noise = {} if noisy else {"noise_gain": 0.0, "noise_floor": 0.0}
-        sets = [cal.synthetic_calibration("Canon EOS 5D Mark II", seed=100 + i, a0=a0, a1=a1, **noise) for i, (a0, a1) in enumerate(draws)]
+        sets = [
+            cal.synthetic_calibration("Canon EOS 5D Mark II", seed=100 + i, a0=a0, a1=a1, **noise)
+            for i, (a0, a1) in enumerate(draws)
+        ]
         fits = cal.fit_sensors_batch(
-            np.stack([s.spectra for s in sets]), np.stack([s.raw for s in sets]), mask=np.stack([s.usable for s in sets]),
-            linearisation="exp", **TRUE_F,
+            np.stack([s.spectra for s in sets]),
+            np.stack([s.raw for s in sets]),
+            mask=np.stack([s.usable for s in sets]),
+            linearisation="exp",
+            **TRUE_F,
         )
         assert bool(np.all(fits.converged))
         a0_error = np.abs(np.asarray(fits.a0) / truth_a0 - 1)
@@ -167,8 +178,11 @@ def test_joint_linearisation_recovers_random_a0_a1():
 def test_batch_equals_single_fits(synthetic):
     other = cal.synthetic_calibration("Nikon D5100", seed=4)
     batch = cal.fit_sensors_batch(
-        np.stack([synthetic.spectra, other.spectra]), np.stack([synthetic.raw, other.raw]),
-        mask=np.stack([synthetic.usable, other.usable]), linearisation="exp", **TRUE_F,
+        np.stack([synthetic.spectra, other.spectra]),
+        np.stack([synthetic.raw, other.raw]),
+        mask=np.stack([synthetic.usable, other.usable]),
+        linearisation="exp",
+        **TRUE_F,
     )
     for b, data in enumerate((synthetic, other)):
         single = cal.fit_sensors(data.spectra, data.raw, linearisation="exp", mask=data.usable, **TRUE_F)
@@ -179,7 +193,15 @@ def test_batch_equals_single_fits(synthetic):
 
 
 def test_cross_validation_prefers_moderate_smoothing(synthetic):
-    fit, cv = cal.fit_sensors_cv(synthetic.spectra, synthetic.raw, smoothness=(0.03, 3.0), folds=3, mask=synthetic.usable, linearisation="exp", **TRUE_F)
+    fit, cv = cal.fit_sensors_cv(
+        synthetic.spectra,
+        synthetic.raw,
+        smoothness=(0.03, 3.0),
+        folds=3,
+        mask=synthetic.usable,
+        linearisation="exp",
+        **TRUE_F,
+    )
     assert cv.errors.shape == (2, 3)
     assert cv.best == 0.03
     assert np.all(cv.errors[1] > cv.errors[0])  # lambda = 3 over-smooths: worse on every fold
@@ -190,7 +212,9 @@ def test_tiny_subsets_stay_finite(synthetic):
     """Two measurements for 3 x 103 unknowns: underdetermined, still finite and within the bounds."""
     two = np.zeros(len(synthetic.usable), bool)
     two[np.flatnonzero(synthetic.usable)[:2]] = True
-    fits = cal.fit_subsets(synthetic.spectra, synthetic.raw, np.stack([two, synthetic.usable]), linearisation="exp", **TRUE_F)
+    fits = cal.fit_subsets(
+        synthetic.spectra, synthetic.raw, np.stack([two, synthetic.usable]), linearisation="exp", **TRUE_F
+    )
     sensors = np.asarray(fits.sensors)
     assert np.all(np.isfinite(sensors)) and np.all(sensors >= 0)
     assert np.all(np.isfinite(np.asarray(fits.a0))) and np.all(np.isfinite(np.asarray(fits.a1)))
@@ -217,10 +241,14 @@ def test_synthetic_generator_matches_its_model(synthetic):
     """Clipping, the inverse of F and the noise level follow the documented defaults."""
     assert len(synthetic.usable) == 624
     assert 590 <= synthetic.n_usable <= 624
-    assert np.all(synthetic.raw[synthetic.usable] < 255) and np.all(np.any(synthetic.raw[~synthetic.usable] >= 255, axis=1))
+    assert np.all(synthetic.raw[synthetic.usable] < 255) and np.all(
+        np.any(synthetic.raw[~synthetic.usable] >= 255, axis=1)
+    )
     # F(raw) returns the noisy linear responses (closed form of eq. 3.14).
     x = synthetic.raw[synthetic.usable]
-    np.testing.assert_allclose(x - 12.0 - 4.0 * np.exp(-0.15 * (x - 10.0)), synthetic.noisy_linear[synthetic.usable], atol=1e-8)
+    np.testing.assert_allclose(
+        x - 12.0 - 4.0 * np.exp(-0.15 * (x - 10.0)), synthetic.noisy_linear[synthetic.usable], atol=1e-8
+    )
     # Noise: standardised residuals are unit normal.
     unit = synthetic.linear / 255.0
     z = (synthetic.noisy_linear / 255.0 - unit) / np.sqrt(2e-6 * unit + (0.05 / 255) ** 2)
@@ -233,7 +261,9 @@ def test_synthetic_generator_matches_its_model(synthetic):
 
 def test_noise_model_recovers_known_model():
     levels = np.repeat(np.geomspace(0.01, 0.9, 8), 24)
-    samples = np.stack([cal.synthetic_repeats(levels, gain=2e-6, floor=(0.05 / 255) ** 2, seed=s) for s in range(3)], axis=-1)
+    samples = np.stack(
+        [cal.synthetic_repeats(levels, gain=2e-6, floor=(0.05 / 255) ** 2, seed=s) for s in range(3)], axis=-1
+    )
     model = cal.fit_noise_model(samples)
     np.testing.assert_allclose(np.asarray(model.gain), 2e-6, rtol=0.05)
     np.testing.assert_allclose(np.asarray(model.floor), (0.05 / 255) ** 2, rtol=0.35)

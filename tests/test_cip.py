@@ -8,6 +8,7 @@ selector compiles once per shape.
 
 from __future__ import annotations
 
+import cip_oracle as oracle
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -16,7 +17,6 @@ import pytest
 
 from ccjax.estimators import cip, registry
 from ccjax.scenes import sample
-import cip_oracle as oracle
 
 PAD = 8
 BATCH = 32
@@ -185,7 +185,9 @@ def test_true_illuminant_is_feasible_under_the_diagonal_model(models, barnard_wo
     for light in rng.choice(len(lights), 5, replace=False):
         rgb = canonical[rng.choice(len(canonical), PAD, replace=False)] * (lights[light] / white)
         u = lights[light] / lights[light].sum()
-        violation = violation_of(jnp.asarray(u[:, None], jnp.float32), jnp.asarray(rgb, jnp.float32), jnp.ones(PAD, bool))
+        violation = violation_of(
+            jnp.asarray(u[:, None], jnp.float32), jnp.asarray(rgb, jnp.float32), jnp.ones(PAD, bool)
+        )
         # Illuminants on the hull boundary sit exactly on a facet: allow float32 rounding.
         assert float(violation[0]) <= 1e-5
 
@@ -233,7 +235,11 @@ def test_degenerate_scenes_are_finite_and_flagged(run, barnard_world, pool):
         "huge values": (some * 1e15, np.ones(PAD, bool), True),
         "tiny values": (some * 1e-15, np.ones(PAD, bool), True),
         "identical pixels": (np.tile(some[:1], (PAD, 1)), np.ones(PAD, bool), True),
-        "pure red and pure blue": (np.array([[1, 0, 0], [0, 0, 1]] * (PAD // 2), np.float32), np.ones(PAD, bool), False),
+        "pure red and pure blue": (
+            np.array([[1, 0, 0], [0, 0, 1]] * (PAD // 2), np.float32),
+            np.ones(PAD, bool),
+            False,
+        ),
     }
     rgb = np.stack([case[0] for case in cases.values()]).astype(np.float32)
     mask = np.stack([case[1] for case in cases.values()])

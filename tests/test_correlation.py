@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import correlation_oracle as oracle
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -14,7 +15,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from jax.test_util import check_grads
 
-import correlation_oracle as oracle
 from ccjax import metrics, scenes
 from ccjax.estimators import correlation, registry
 
@@ -111,7 +111,9 @@ def test_specular_brightness_matrix_matches_oracle(barnard_world, spectra):
     matrix, l_total = correlation.brightness_matrix(world, specular=scenes.Specular())
     assert l_total == 150
     possible = np.add.outer(np.arange(50), np.arange(50)) <= 49
-    np.testing.assert_allclose(compact_to_dense(matrix, l_total)[:, possible], reference[:, possible], atol=2e-5, rtol=0)
+    np.testing.assert_allclose(
+        compact_to_dense(matrix, l_total)[:, possible], reference[:, possible], atol=2e-5, rtol=0
+    )
 
 
 @pytest.fixture(scope="module")
@@ -152,7 +154,9 @@ def test_hull_estimates_match_oracle(barnard_world, batch, oracle_hull, illumina
     estimate = np.asarray(run(model, batch.rgb, batch.mask).illuminant)
     rgb, mask = np.asarray(batch.rgb, np.float64), np.asarray(batch.mask)
     for k in range(N_SCENES):
-        np.testing.assert_allclose(estimate[k, :2], oracle.estimate_01(compatible, illuminant_rg, rgb[k], mask[k]), atol=1e-6)
+        np.testing.assert_allclose(
+            estimate[k, :2], oracle.estimate_01(compatible, illuminant_rg, rgb[k], mask[k]), atol=1e-6
+        )
 
 
 def _check_brightness_against_oracle(world, batch, log_p, illuminant_rg, method, references):
@@ -194,7 +198,9 @@ def test_float32_agrees_with_oracle(barnard_world, batch, illuminant_rg, oracle_
     """The default float32 kernels: MMSE within 2e-4 in (r,g) on at least 98 of 100 scenes (a level
     boundary can fall between the float32 and float64 brightness of a pixel)."""
     estimate = run(registry.fit("RGB-C-by-C-MMSE", barnard_world), batch.rgb, batch.mask).illuminant
-    reference = np.stack([oracle.estimate_from_posterior_3d("MMSE", p, b, illuminant_rg)[0] for p, b in oracle_3d_posteriors])
+    reference = np.stack(
+        [oracle.estimate_from_posterior_3d("MMSE", p, b, illuminant_rg)[0] for p, b in oracle_3d_posteriors]
+    )
     distance = np.asarray(metrics.rg_error(estimate, jnp.asarray(reference, jnp.float32)))
     assert np.sum(distance < 2e-4) >= 98, np.sort(distance)[-5:]
 
@@ -206,14 +212,21 @@ SOFT = {"softness": correlation.DEFAULT_SOFTNESS, "temperature": correlation.DEF
 
 @pytest.mark.parametrize(
     "label",
-    ["C-by-C-MMSE", "RGB-C-by-C-MMSE", pytest.param("C-by-C-MAP", marks=pytest.mark.slow), pytest.param("RGB-C-by-C-MAP", marks=pytest.mark.slow)],
+    [
+        "C-by-C-MMSE",
+        "RGB-C-by-C-MMSE",
+        pytest.param("C-by-C-MAP", marks=pytest.mark.slow),
+        pytest.param("RGB-C-by-C-MAP", marks=pytest.mark.slow),
+    ],
 )
 def test_soft_estimate_close_to_hard(barnard_world, batch, label):
     """At the temperature of the gradient checks, the soft estimate's median (r,g) distance to the
     hard one over 100 scenes is below 0.005."""
     hard = registry.fit(label, barnard_world)
     soft = registry.fit(f"soft-{label}", barnard_world, **SOFT)
-    distance = metrics.rg_error(run(soft, batch.rgb, batch.mask).illuminant, run(hard, batch.rgb, batch.mask).illuminant)
+    distance = metrics.rg_error(
+        run(soft, batch.rgb, batch.mask).illuminant, run(hard, batch.rgb, batch.mask).illuminant
+    )
     assert float(jnp.median(distance)) < 0.005
 
 
@@ -257,7 +270,9 @@ def test_permutation_and_padding_invariance(models, batch, seed):
     rng = np.random.default_rng(seed)
     order = np.argsort(rng.random((N_SCENES, 8)), axis=1)
     shuffled = np.take_along_axis(np.asarray(batch.rgb), order[..., None], axis=1)
-    padded = jnp.concatenate([jnp.asarray(shuffled), jnp.asarray(rng.uniform(0, 1, (N_SCENES, 4, 3)), jnp.float32)], axis=1)
+    padded = jnp.concatenate(
+        [jnp.asarray(shuffled), jnp.asarray(rng.uniform(0, 1, (N_SCENES, 4, 3)), jnp.float32)], axis=1
+    )
     padded_mask = jnp.concatenate([batch.mask, jnp.zeros((N_SCENES, 4), bool)], axis=1)
     for label, model in models.items():
         a, b = run(model, batch.rgb, batch.mask).illuminant, run(model, padded, padded_mask).illuminant

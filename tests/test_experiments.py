@@ -28,7 +28,9 @@ def test_sweep_is_independent_of_chunk_size(default_world, small_sweep):
     for method in METHODS:
         for stat in small_sweep.errors[method][4]:
             # Same scenes; only float32 rounding of differently shaped batches may differ.
-            np.testing.assert_allclose(chunked.errors[method][4][stat], small_sweep.errors[method][4][stat], rtol=1e-4, atol=1e-6)
+            np.testing.assert_allclose(
+                chunked.errors[method][4][stat], small_sweep.errors[method][4][stat], rtol=1e-4, atol=1e-6
+            )
     assert len(chunked.errors["GW"][4]["rg"]) == 400
 
 
@@ -37,7 +39,11 @@ def test_sweep_rows_and_outputs(small_sweep, tmp_path):
     # NOTHING is a chromaticity method: no RGB-valued statistics.
     assert {r["statistic"] for r in rows if r["method"] == "NOTHING"} == {"angular", "rg", "map_rg"}
     assert {r["statistic"] for r in rows if r["method"] == "GW"} == set(experiments.STATISTICS)
-    gw_rms = [r for r in rows if r["method"] == "GW" and r["surfaces"] == 4 and r["statistic"] == "rg" and r["summary"] == "rms"][0]
+    gw_rms = [
+        r
+        for r in rows
+        if r["method"] == "GW" and r["surfaces"] == 4 and r["statistic"] == "rg" and r["summary"] == "rms"
+    ][0]
     assert gw_rms["value"] == pytest.approx(float(np.sqrt(np.mean(small_sweep.errors["GW"][4]["rg"] ** 2))))
     assert json.loads(small_sweep.to_json())["rows"][0]["method"] == "NOTHING"
     assert small_sweep.to_csv().splitlines()[0].startswith("method,surfaces,statistic")
@@ -111,8 +117,26 @@ def test_sharded_sweep_matches_single_device():
 
 
 def test_cli_compare_writes_outputs(small_sweep, tmp_path, capsys):
-    code = cli.main(["compare", "--methods", "NOTHING,GW,RETINEX", "--surfaces", "4,64", "--scenes", "400", "--seed", "1", "--no-progress",
-                     "--plot", str(tmp_path / "c.png"), "--json", str(tmp_path / "c.json"), "--csv", str(tmp_path / "c.csv")])
+    code = cli.main(
+        [
+            "compare",
+            "--methods",
+            "NOTHING,GW,RETINEX",
+            "--surfaces",
+            "4,64",
+            "--scenes",
+            "400",
+            "--seed",
+            "1",
+            "--no-progress",
+            "--plot",
+            str(tmp_path / "c.png"),
+            "--json",
+            str(tmp_path / "c.json"),
+            "--csv",
+            str(tmp_path / "c.csv"),
+        ]
+    )
     assert code == 0
     printed = capsys.readouterr().out
     assert "GW" in printed and "RETINEX" in printed and "rg (rms)" in printed
@@ -136,7 +160,14 @@ def test_cli_reproduce_json(barnard_world, capsys):
 
 def test_reproduction_text_counts_bands_and_checks_orderings():
     def row(method, column, ours, thesis):
-        return {"method": method, "column": column, "ours": ours, "thesis": thesis, "relative_difference": ours / thesis - 1, "ok_fraction": 1.0}
+        return {
+            "method": method,
+            "column": column,
+            "ours": ours,
+            "thesis": thesis,
+            "relative_difference": ours / thesis - 1,
+            "ok_fraction": 1.0,
+        }
 
     rows = [
         row("ECRULE-MV", "rg@8", 0.044, 0.044),  # 0 %

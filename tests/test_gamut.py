@@ -8,6 +8,7 @@ reuses them; the 200-scene oracle comparisons are marked slow.
 from __future__ import annotations
 
 import equinox as eqx
+import gamut_oracle as oracle
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -16,7 +17,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 
-import gamut_oracle as oracle
 from ccjax import metrics
 from ccjax.estimators import gamut, registry
 from ccjax.estimators.base import estimate_batch
@@ -33,9 +33,7 @@ SELECTORS_E = ("MV", "AVE", "ICA", "SCWIA-12")
 @pytest.fixture(scope="module")
 def models(barnard_world):
     return {
-        (c, e): gamut.fit(barnard_world, constraint=c, extension=e)
-        for c in ("CRULE", "ECRULE")
-        for e in (None, "ND")
+        (c, e): gamut.fit(barnard_world, constraint=c, extension=e) for c in ("CRULE", "ECRULE") for e in (None, "ND")
     }
 
 
@@ -74,7 +72,9 @@ def reference(barnard_world):
         "ND": oracle.hull_halfspaces(gamut.model.canonical_points(barnard_world, "ND")),
         "white": np.asarray(barnard_world.canonical_white, np.float64),
         "polygon": oracle.illuminant_polygon(np.asarray(barnard_world.train_whites)),
-        "cone": oracle.map_cone_halfspaces(np.asarray(barnard_world.train_whites), np.asarray(barnard_world.canonical_white)),
+        "cone": oracle.map_cone_halfspaces(
+            np.asarray(barnard_world.train_whites), np.asarray(barnard_world.canonical_white)
+        ),
     }
 
 
@@ -116,7 +116,9 @@ def _ecrule_errors(out, scenes, ref, step=2e-3):
             continue
         e = white / oracle.centroid_by_directions(rg, extent, white)
         ica.append(np.linalg.norm(_chroma(out["ICA"].illuminant[s]) - _chroma(e)))
-        scwia.append(np.linalg.norm(_chroma(out["SCWIA-12"].illuminant[s]) - oracle.scwia_by_directions(rg, extent, white, 12)))
+        scwia.append(
+            np.linalg.norm(_chroma(out["SCWIA-12"].illuminant[s]) - oracle.scwia_by_directions(rg, extent, white, 12))
+        )
     return np.array(ica), np.array(scwia)
 
 
@@ -131,7 +133,9 @@ def test_canonical_gamut_facets_are_qhulls(barnard_world):
     # Every database RGB and the origin satisfy every facet; the facet count is Qhull's.
     assert np.all(points @ facets.top_normals.T <= facets.top_offsets + 1e-9)
     assert np.all(points @ facets.origin_normals.T <= 1e-9)
-    assert len(facets.origin_normals) + len(facets.top_normals) == len(np.unique(np.round(np.hstack([A, b[:, None]]), 9), axis=0))
+    assert len(facets.origin_normals) + len(facets.top_normals) == len(
+        np.unique(np.round(np.hstack([A, b[:, None]]), 9), axis=0)
+    )
     # Origin facets are exactly those of Qhull's planes with (numerically) zero offset.
     assert len(facets.origin_normals) == np.count_nonzero(np.abs(b) < 1e-12)
     assert np.all(facets.top_offsets > 0)
@@ -192,7 +196,9 @@ def test_crule_matches_exact_oracle_on_a_few_scenes(barnard_world, models, refer
     scenes = sample(jax.random.key(21), barnard_world, 16, 8)
     out = run_all(models[("CRULE", None)], scenes.rgb, scenes.mask)
     ave, mv = _crule_errors(out, scenes, reference)
-    print(f"CRULE 8 surfaces: {len(ave)} non-empty scenes; AVE median {np.median(ave):.2e}; MV median {np.median(mv):.2e}")
+    print(
+        f"CRULE 8 surfaces: {len(ave)} non-empty scenes; AVE median {np.median(ave):.2e}; MV median {np.median(mv):.2e}"
+    )
     assert len(ave) >= 12
     assert np.median(ave) < 0.005
     assert np.median(np.abs(mv)) < 0.005
@@ -203,7 +209,9 @@ def test_ecrule_ica_scwia_match_quadrature_on_a_few_scenes(barnard_world, models
     scenes = sample(jax.random.key(22), barnard_world, 6, 8)
     out = run_all(models[("ECRULE", None)], scenes.rgb, scenes.mask)
     ica, scwia = _ecrule_errors(out, scenes, reference)
-    print(f"ECRULE 8 surfaces: {len(ica)} non-empty scenes; ICA median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}")
+    print(
+        f"ECRULE 8 surfaces: {len(ica)} non-empty scenes; ICA median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}"
+    )
     assert len(ica) >= 4
     assert np.median(ica) < 0.002
     assert np.median(scwia) < 0.002
@@ -315,7 +323,18 @@ def test_relaxation_levels_are_zero_then_doubling():
 
 
 def test_labels(barnard_world):
-    for label in ("CRULE-MV", "CRULE-AVE", "ECRULE-MV", "ECRULE-AVE", "ECRULE-ICA", "ECRULE-SCWIA-12", "CRULE-SCWIA-6", "ND-ECRULE-SCWIA-12", "ND-CRULE-AVE", "soft-ECRULE-SCWIA-12"):
+    for label in (
+        "CRULE-MV",
+        "CRULE-AVE",
+        "ECRULE-MV",
+        "ECRULE-AVE",
+        "ECRULE-ICA",
+        "ECRULE-SCWIA-12",
+        "CRULE-SCWIA-6",
+        "ND-ECRULE-SCWIA-12",
+        "ND-CRULE-AVE",
+        "soft-ECRULE-SCWIA-12",
+    ):
         estimator = registry.fit(label, barnard_world)
         assert estimator.estimates_brightness
     assert registry.fit("ND-ECRULE-ICA", barnard_world).model.extension == "ND"
@@ -333,9 +352,11 @@ def test_mv_brightness_beats_averaging_and_scwia_interpolates(barnard_world, mod
     chromaticity beats both MV and ICA at 8 surfaces."""
     scenes = sample(jax.random.key(31), barnard_world, 300, 8)
     out = run_all(models[("ECRULE", None)], scenes.rgb, scenes.mask)
-    rms = lambda x: float(np.sqrt(np.mean(np.square(x))))  # noqa: E731
+    rms = lambda x: float(np.sqrt(np.mean(np.square(x))))
     truth = scenes.illuminant
-    assert rms(metrics.brightness_error(out["MV"].illuminant, truth)) < rms(metrics.brightness_error(out["AVE"].illuminant, truth))
+    assert rms(metrics.brightness_error(out["MV"].illuminant, truth)) < rms(
+        metrics.brightness_error(out["AVE"].illuminant, truth)
+    )
     rg = {name: rms(metrics.rg_error(out[name].illuminant, truth)) for name in SELECTORS_E}
     assert rg["SCWIA-12"] < rg["MV"] < rg["ICA"]
 
@@ -348,14 +369,16 @@ def test_soft_variant_gradients_x64(barnard_world, models):
     from jax.test_util import check_grads
 
     with jax.enable_x64(True):
-        model = jax.tree_util.tree_map(lambda x: x.astype(jnp.float64) if eqx.is_array(x) else x, models[("ECRULE", None)])
+        model = jax.tree_util.tree_map(
+            lambda x: x.astype(jnp.float64) if eqx.is_array(x) else x, models[("ECRULE", None)]
+        )
         rgb, mask = _scene(barnard_world, 8)
         rgb = jnp.asarray(rgb, jnp.float64)
         soft = gamut.SoftGamutMapping(model, "SCWIA", 12.0)
         f = jax.jit(lambda r: soft(r, mask).illuminant)
         check_grads(f, (rgb,), order=1, modes=["rev"], eps=1e-6)
         # One gradient for both: the input RGB and the canonical gamut's facets.
-        total = lambda pair: jnp.sum(gamut.SoftGamutMapping(pair[0], "SCWIA", 12.0)(pair[1], mask).illuminant)  # noqa: E731
+        total = lambda pair: jnp.sum(gamut.SoftGamutMapping(pair[0], "SCWIA", 12.0)(pair[1], mask).illuminant)
         grad_model, grad_rgb = jax.jit(jax.grad(total))((model, rgb))
         assert float(jnp.linalg.norm(grad_rgb)) > 1e-3
         assert float(jnp.linalg.norm(grad_model.top_normals)) > 0 and float(jnp.linalg.norm(grad_model.top_offsets)) > 0
@@ -384,7 +407,9 @@ def test_crule_against_oracle_200_scenes(barnard_world, models, reference, n_sur
     out = _runner(powers=())(models[("CRULE", extension)], scenes.rgb, scenes.mask)
     ave, mv = _crule_errors(out, scenes, reference, extension)
     label = "ND-CRULE" if extension else "CRULE"
-    print(f"{label} {n_surfaces} surfaces: {len(ave)}/200 non-empty; AVE centroid error median {np.median(ave):.2e}; MV product shortfall median {np.median(mv):.2e}")
+    print(
+        f"{label} {n_surfaces} surfaces: {len(ave)}/200 non-empty; AVE centroid error median {np.median(ave):.2e}; MV product shortfall median {np.median(mv):.2e}"
+    )
     assert len(ave) >= 100
     assert np.median(ave) < 0.005
     assert np.median(np.abs(mv)) < 0.005
@@ -396,7 +421,9 @@ def test_ecrule_against_quadrature_200_scenes(barnard_world, models, reference, 
     scenes = sample(jax.random.key(200 + n_surfaces), barnard_world, 200, n_surfaces)
     out = _runner()(models[("ECRULE", None)], scenes.rgb, scenes.mask)
     ica, scwia = _ecrule_errors(out, scenes, reference)
-    print(f"ECRULE {n_surfaces} surfaces: {len(ica)}/200 non-empty; ICA (r,g) error median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}")
+    print(
+        f"ECRULE {n_surfaces} surfaces: {len(ica)}/200 non-empty; ICA (r,g) error median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}"
+    )
     assert len(ica) >= 100
     assert np.median(ica) < 0.002
     assert np.median(scwia) < 0.002

@@ -11,11 +11,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import tifffile
+from small_world import small_world
 
 from ccjax import cli, images, scenes
 from ccjax.images import LinearImage, Preprocessing
 from ccjax.metrics import angular_error
-from small_world import small_world
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +61,9 @@ def _reference_png(pixels: np.ndarray, filters) -> bytes:
 
     colour = {1: 0, 3: 2, 4: 6}[channels]
     header = struct.pack(">IIBBBBB", width, height, depth, colour, 0, 0, 0)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(bytes(out))) + chunk(b"IEND", b"")
+    return (
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(bytes(out))) + chunk(b"IEND", b"")
+    )
 
 
 @pytest.mark.parametrize("dtype", [np.uint16, np.uint8])
@@ -112,7 +114,9 @@ def _zero_size_png(path):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
     header = struct.pack(">IIBBBBB", 0, 0, 16, 2, 0, 0, 0)
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b""))
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b"")
+    )
 
 
 def _bad_files(tmp_path):
@@ -155,7 +159,12 @@ def _random_image(seed=0, shape=(13, 17)):
 def test_usable_pixels_reference():
     rgb, clipped = _random_image()
     peak = max(rgb[y, x].sum() for y in range(rgb.shape[0]) for x in range(rgb.shape[1]) if not clipped[y, x])
-    want = np.array([[not clipped[y, x] and rgb[y, x].sum() >= 0.02 * peak for x in range(rgb.shape[1])] for y in range(rgb.shape[0])])
+    want = np.array(
+        [
+            [not clipped[y, x] and rgb[y, x].sum() >= 0.02 * peak for x in range(rgb.shape[1])]
+            for y in range(rgb.shape[0])
+        ]
+    )
     np.testing.assert_array_equal(images.usable_pixels(rgb, clipped, 0.02), want)
     assert not want[2, 3]
 
@@ -224,7 +233,9 @@ def test_segmentation_regions():
     usable = np.ones((10, 12), bool)
     regions = images.segment(rgb, usable, min_size=5, rg_tolerance=0.01, brightness_tolerance=0.2)
     assert len(regions) == 2
-    np.testing.assert_allclose(regions[0], rgb[:, :6][~np.pad(np.ones((2, 2), bool), ((0, 8), (0, 4)))].mean(axis=0), rtol=1e-5)
+    np.testing.assert_allclose(
+        regions[0], rgb[:, :6][~np.pad(np.ones((2, 2), bool), ((0, 8), (0, 4)))].mean(axis=0), rtol=1e-5
+    )
     np.testing.assert_allclose(regions[1], rgb[:, 6:].reshape(-1, 3).mean(axis=0), rtol=1e-5)
     # A tighter brightness tolerance splits the ramp.
     assert len(images.segment(rgb, usable, 5, 0.01, 0.05)) > 2
@@ -313,7 +324,7 @@ def test_fold_worlds_learn_only_other_folds(world):
     for fold, fold_world in enumerate(worlds):
         learned = np.asarray(fold_world.train_whites)
         want = truth[fold_of != fold]
-        rg = lambda v: v[:, :2] / v.sum(axis=1, keepdims=True)  # noqa: E731
+        rg = lambda v: v[:, :2] / v.sum(axis=1, keepdims=True)
         np.testing.assert_allclose(np.sort(rg(learned), axis=0), np.sort(rg(want), axis=0), atol=1e-5)
 
 
@@ -342,7 +353,9 @@ def test_mondrian_layout_and_spectral_rendering(world, mondrians):
         assert sorted(np.unique(labels)) == list(range(12))
         assert image.max() == pytest.approx(1.0)
         illuminant = np.asarray(batch.illuminant[b], np.float64)
-        light = int(np.argmin(np.abs(whites / whites.max(axis=1, keepdims=True) - illuminant / illuminant.max()).sum(axis=1)))
+        light = int(
+            np.argmin(np.abs(whites / whites.max(axis=1, keepdims=True) - illuminant / illuminant.max()).sum(axis=1))
+        )
         scale = illuminant[0] / whites[light, 0]  # the image's normalisation
         for patch in range(12):
             expected = (refl[int(batch.surfaces[b, patch])] * lights[light]) @ sensors * scale
@@ -364,15 +377,21 @@ def test_mondrian_highlights_are_the_light_colour():
     labels = jnp.asarray(np.repeat(np.arange(4), 64).reshape(16, 16))
     patch_rgb = jnp.asarray(np.random.default_rng(8).random((4, 3)), jnp.float32)
     white = jnp.array([0.9, 1.0, 0.6], jnp.float32)
-    render = jax.jit(lambda spec, clip: scenes.render_mondrian(
-        jax.random.key(0), labels, patch_rgb, white, specular=spec, clip=clip, normalise=False)[0], static_argnums=(0, 1))
+    render = jax.jit(
+        lambda spec, clip: scenes.render_mondrian(
+            jax.random.key(0), labels, patch_rgb, white, specular=spec, clip=clip, normalise=False
+        )[0],
+        static_argnums=(0, 1),
+    )
     matte = np.asarray(render(None, None))
     shiny = np.asarray(render(scenes.Specular(probability=1.0, max_amount=2.0), None))
     extra = shiny - matte
     assert extra.max() > 0.05
     direction = extra / np.maximum(extra.sum(-1, keepdims=True), 1e-12)
     big = extra.sum(-1) > 1e-3
-    np.testing.assert_allclose(direction[big], np.broadcast_to(np.asarray(white) / float(white.sum()), direction[big].shape), atol=1e-4)
+    np.testing.assert_allclose(
+        direction[big], np.broadcast_to(np.asarray(white) / float(white.sum()), direction[big].shape), atol=1e-4
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -398,7 +417,16 @@ def test_cli_bad_files_exit_non_zero_and_write_nothing(tmp_path, world, cache, m
         argv = {
             "estimate": ["estimate", str(folder), "--method", "GW", "--json"],
             "correct": ["correct", str(folder), str(out), "--method", "GW"],
-            "evaluate": ["evaluate", str(folder), "--ground-truth", str(folder / "gt.csv"), "--methods", "GW", "--json", str(out)],
+            "evaluate": [
+                "evaluate",
+                str(folder),
+                "--ground-truth",
+                str(folder / "gt.csv"),
+                "--methods",
+                "GW",
+                "--json",
+                str(out),
+            ],
         }[command]
         assert cli.main(argv + ["--no-progress"]) == 2
         captured = capsys.readouterr()
@@ -427,7 +455,22 @@ def test_round_trip_files_equal_memory(tmp_path, world, cache, monkeypatch, mond
     methods = ["GW", "DB-GW", "RETINEX", "grey-edge-1-6-2"]
     batch = mondrians[1]
     gt = images.write_dataset(tmp_path / "set", batch.image, batch.illuminant)
-    assert cli.main(["evaluate", str(tmp_path / "set"), "--ground-truth", str(gt), "--methods", ",".join(methods), "--json", str(tmp_path / "r.json"), "--no-progress"]) == 0
+    assert (
+        cli.main(
+            [
+                "evaluate",
+                str(tmp_path / "set"),
+                "--ground-truth",
+                str(gt),
+                "--methods",
+                ",".join(methods),
+                "--json",
+                str(tmp_path / "r.json"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     records = json.loads((tmp_path / "r.json").read_text())["images"]
     codes = images.quantise(np.asarray(batch.image))
     for method in methods:

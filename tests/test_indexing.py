@@ -5,9 +5,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from small_world import small_world
 
 from ccjax import indexing
-from small_world import small_world
 
 
 def test_histogram_matches_numpy():
@@ -32,12 +32,18 @@ def test_intersection_and_ranks_reference():
     np.testing.assert_allclose(got, want, rtol=1e-6)
     truth = np.array([0, 1, 2, 0, 1])
     ranks = [1 + sum(want[q, m] > want[q, truth[q]] for m in range(3)) for q in range(5)]
-    np.testing.assert_array_equal(np.asarray(jax.jit(indexing.correct_ranks)(jnp.asarray(want), jnp.asarray(truth))), ranks)
+    np.testing.assert_array_equal(
+        np.asarray(jax.jit(indexing.correct_ranks)(jnp.asarray(want), jnp.asarray(truth))), ranks
+    )
 
 
 @pytest.mark.parametrize(
     "counts, scores",
-    [((193, 23, 3), (0.877, 0.930, 0.934)), ((93, 31, 13), (0.423, 0.493, 0.513)), ((178, 23, 3), (0.809, 0.861, 0.866))],
+    [
+        ((193, 23, 3), (0.877, 0.930, 0.934)),
+        ((93, 31, 13), (0.423, 0.493, 0.513)),
+        ((178, 23, 3), (0.809, 0.861, 0.866)),
+    ],
 )
 def test_rank_scores_reproduce_table_11_1(counts, scores):
     """Table 11.1 (220 images): ACTUAL, NOTHING and ND-CRULE-AVE rank counts give the printed scores."""
@@ -50,7 +56,16 @@ def test_rank_scores_reproduce_table_11_1(counts, scores):
 @pytest.mark.slow
 def test_small_experiment():
     world = small_world()
-    result = indexing.run_indexing(world, ["ACTUAL", "NOTHING", "RETINEX"], jax.random.key(0), n_objects=8, n_lights=4, size=32, n_surfaces=6, fit=lambda label, w: __import__("ccjax").fit(label, w))
+    result = indexing.run_indexing(
+        world,
+        ["ACTUAL", "NOTHING", "RETINEX"],
+        jax.random.key(0),
+        n_objects=8,
+        n_lights=4,
+        size=32,
+        n_surfaces=6,
+        fit=lambda label, w: __import__("ccjax").fit(label, w),
+    )
     rows = result.rows
     assert result.n_queries == 32
     assert rows["ACTUAL"]["rg_error"] < 1e-6

@@ -6,9 +6,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import reference
 
 from ccjax import metrics
-import reference
 
 
 @pytest.fixture
@@ -55,7 +55,9 @@ def test_mapping_errors_match_reference():
         mask[0] = True
         est = rng.uniform(0.2, 1.0, 3)
         white = rng.uniform(0.5, 1.0, 3)
-        ours = metrics.mapping_errors(jnp.asarray(est), jnp.asarray(rgb), jnp.asarray(mask), jnp.asarray(canon), jnp.asarray(white))
+        ours = metrics.mapping_errors(
+            jnp.asarray(est), jnp.asarray(rgb), jnp.asarray(mask), jnp.asarray(canon), jnp.asarray(white)
+        )
         want = reference.mapping_errors(est, rgb, mask, canon, white)
         assert float(ours[0]) == pytest.approx(want[0], rel=1e-4)
         assert float(ours[1]) == pytest.approx(want[1], rel=1e-4)
@@ -71,7 +73,9 @@ def test_mapping_error_is_zero_for_the_exact_diagonal_map():
 
 
 def test_reproduction_error_zero_for_scaled_truth():
-    assert float(metrics.reproduction_angular_error(jnp.array([0.4, 0.8, 0.6]), jnp.array([0.2, 0.4, 0.3]))) == pytest.approx(0.0, abs=1e-4)
+    assert float(
+        metrics.reproduction_angular_error(jnp.array([0.4, 0.8, 0.6]), jnp.array([0.2, 0.4, 0.3]))
+    ) == pytest.approx(0.0, abs=1e-4)
 
 
 def test_summaries():

@@ -62,7 +62,7 @@ def tiny_world(name: str = "tiny", seed: int = 0) -> World:
     sensors = np.stack([np.exp(-0.5 * ((WAVELENGTHS - c) / 30.0) ** 2) for c in (450.0, 540.0, 610.0)], axis=1)
     camera = Camera.from_array(sensors, name="gaussian")
     lights = lights / np.max(lights @ sensors, axis=1, keepdims=True)
-    f32 = lambda a: jnp.asarray(a, jnp.float32)  # noqa: E731
+    f32 = lambda a: jnp.asarray(a, jnp.float32)
     return World(
         reflectances=f32(reflectances),
         train_illuminants=f32(lights),
@@ -223,7 +223,11 @@ def test_cache_key_follows_world_arrays_and_recipe():
     [
         ("NEURAL-NET", "barnard1999", "ccjax train-net --world barnard1999`"),
         ("SP-NEURAL-NET", "barnard1999", "ccjax train-net --world barnard1999 --specular`"),
-        ("NEURAL-NET", "default (Canon EOS 5D Mark II)", 'ccjax train-net --world default --camera "Canon EOS 5D Mark II"`'),
+        (
+            "NEURAL-NET",
+            "default (Canon EOS 5D Mark II)",
+            'ccjax train-net --world default --camera "Canon EOS 5D Mark II"`',
+        ),
     ],
 )
 def test_missing_weights_error_says_how_to_train(cache, label, name, command):

@@ -1,7 +1,6 @@
 """Synthetic scenes: sampling, specular recipe, clipping, noise, reproducibility."""
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 

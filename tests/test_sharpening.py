@@ -99,7 +99,9 @@ def test_best_linear_and_diagonal_match_numpy(seed):
     d = np.asarray(sh.best_diagonal_map(jnp.asarray(source), jnp.asarray(canonical), jnp.asarray(transform)))
     d_ref = oracle_best_diagonal(source, canonical, transform)
     np.testing.assert_allclose(d, d_ref, rtol=2e-3, atol=2e-4)
-    err = float(sh.mapping_error(jnp.asarray(source), jnp.asarray(canonical), jnp.asarray(transform), jnp.asarray(d_ref)))
+    err = float(
+        sh.mapping_error(jnp.asarray(source), jnp.asarray(canonical), jnp.asarray(transform), jnp.asarray(d_ref))
+    )
     assert err == pytest.approx(oracle_mapping_error(source, canonical, transform, d_ref), rel=1e-3)
     # The best linear map can never be worse than a generalised diagonal one (spec §5 item 11).
     assert float(sh.best_linear_error(jnp.asarray(source), jnp.asarray(canonical))) <= err * (1 + 1e-4)
@@ -201,7 +203,16 @@ def test_objective_matches_the_literal_equations():
     offset = 0.05  # large enough that the positivity term is active
     for _ in range(3):
         t = np.eye(3) + 0.4 * rng.normal(size=(3, 3))
-        ours = float(sh.objective(jnp.asarray(t, jnp.float32), jnp.asarray(train, jnp.float32), jnp.asarray(canonical, jnp.float32), 3.0, 0.7, offset))
+        ours = float(
+            sh.objective(
+                jnp.asarray(t, jnp.float32),
+                jnp.asarray(train, jnp.float32),
+                jnp.asarray(canonical, jnp.float32),
+                3.0,
+                0.7,
+                offset,
+            )
+        )
         assert ours == pytest.approx(oracle_objective(t, train, canonical, 3.0, 0.7, offset), rel=1e-4)
 
 
@@ -219,8 +230,10 @@ def test_objective_gradients_x64():
 
 def test_new_method_converges_and_respects_positivity(small_world):
     result = sh.new_sharpening(small_world, candidates=(0.0, 1e2, 1e4), bisections=0)
-    print(f"\nnew method (small world): lambda_P {result.lambda_p:g}, {result.iterations} iterations, "
-          f"J {result.initial_objective:.4f} -> {result.objective:.4f}, negative {result.negative_fraction:.4%}")
+    print(
+        f"\nnew method (small world): lambda_P {result.lambda_p:g}, {result.iterations} iterations, "
+        f"J {result.initial_objective:.4f} -> {result.objective:.4f}, negative {result.negative_fraction:.4%}"
+    )
     assert result.converged
     assert result.mapping < result.initial_mapping
     assert result.negative_fraction < sh.NEGATIVE_TOLERANCE
@@ -290,12 +303,14 @@ def test_actual_has_zero_angle_and_chapter5_rows(small_world):
         assert rows[("ACTUAL", sharpening)]["angular"] < 1e-3
         assert rows[("BEST-LINEAR", "none")]["map_rgb"] <= rows[("BEST-DIAGONAL", sharpening)]["map_rgb"] * (1 + 1e-3)
     # opt is best-linear for BEST-DIAGONAL (spec §5 item 2; real eigenvectors nearly always).
-    assert rows[("BEST-DIAGONAL", "opt")]["map_rgb"] == pytest.approx(rows[("BEST-LINEAR", "none")]["map_rgb"], rel=0.05)
+    assert rows[("BEST-DIAGONAL", "opt")]["map_rgb"] == pytest.approx(
+        rows[("BEST-LINEAR", "none")]["map_rgb"], rel=0.05
+    )
 
 
 @pytest.mark.slow
 def test_per_scene_sharpening_keeps_grey_world_estimate(small_world):
-    """"opt" refits GW for every scene's own T (traced through vmap): the estimate never changes."""
+    """ "opt" refits GW for every scene's own T (traced through vmap): the estimate never changes."""
     result = sh.chapter5_errors(small_world, ["GW", "DB-GW"], ("none", "opt"), n_scenes=32)
     rows = {(r["method"], r["sharpening"]): r for r in result.rows()}
     assert rows[("GW", "opt")]["angular"] == pytest.approx(rows[("GW", "none")]["angular"], rel=1e-3)

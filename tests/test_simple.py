@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from jax.test_util import check_grads
@@ -11,7 +12,6 @@ from jax.test_util import check_grads
 import ccjax
 from ccjax.estimators import registry
 from ccjax.estimators.simple import average_illuminant
-import reference
 
 LABELS = ["GW", "DB-GW", "RETINEX", "shades-of-grey-p6", "shades-of-grey-p1", "NOTHING", "AVE-ILLUM"]
 P = 16  # one padded shape for every property example, so XLA compiles once per method
@@ -35,7 +35,10 @@ def test_match_reference(models, run, default_world):
         rgb = rng.uniform(0, 1, (P, 3))
         mask = rng.uniform(size=P) < 0.6
         mask[0] = True
-        got = {label: np.asarray(run(models[label], jnp.asarray(rgb, jnp.float32), jnp.asarray(mask)).illuminant) for label in LABELS}
+        got = {
+            label: np.asarray(run(models[label], jnp.asarray(rgb, jnp.float32), jnp.asarray(mask)).illuminant)
+            for label in LABELS
+        }
         np.testing.assert_allclose(got["GW"], reference.grey_world(rgb, mask, [2, 2, 2]), rtol=1e-5)
         np.testing.assert_allclose(got["DB-GW"], reference.grey_world(rgb, mask, w_c / db_grey), rtol=1e-4)
         np.testing.assert_allclose(got["RETINEX"], reference.max_rgb(rgb, mask), rtol=1e-6)
@@ -122,8 +125,10 @@ def test_gradients_match_finite_differences(default_world):
         truth = jnp.array([0.5, 0.8, 1.0])
         for label in ["GW", "shades-of-grey-p6", "soft-RETINEX-t0.05"]:
             model = registry.fit(label, default_world)
-            model = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64) if isinstance(x, jax.Array) else x, model)
-            loss = lambda x: ccjax.metrics.angular_error(model(x, mask).illuminant, truth)  # noqa: E731
+            model = jax.tree_util.tree_map(
+                lambda x: jnp.asarray(x, jnp.float64) if isinstance(x, jax.Array) else x, model
+            )
+            loss = lambda x: ccjax.metrics.angular_error(model(x, mask).illuminant, truth)
             check_grads(loss, (rgb,), order=1, modes=["rev"], atol=1e-4, rtol=1e-4)
             assert float(jnp.linalg.norm(jax.grad(loss)(rgb))) > 0
 

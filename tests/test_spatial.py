@@ -9,10 +9,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from jax.test_util import check_grads
+from spatial_reference import grey_edge_reference
 
 from ccjax.estimators import registry
 from ccjax.estimators.spatial import GreyEdge, fit_grey_edge
-from spatial_reference import grey_edge_reference
 
 FALLBACK = jnp.array([0.5, 0.6, 0.7])
 
@@ -25,7 +25,9 @@ def _image(seed=0, shape=(23, 31)):
     image = (0.5 + 0.3 * base + 0.2 * rng.random(shape + (3,))) * np.array([0.9, 0.6, 0.4])
     mask = np.ones(shape, bool)
     h, w = shape
-    mask[h // 4, w // 4] = mask[2 * h // 3, 2 * w // 3] = mask[0, w - 1] = False  # isolated invalid pixels (e.g. clipped)
+    mask[h // 4, w // 4] = mask[2 * h // 3, 2 * w // 3] = mask[0, w - 1] = (
+        False  # isolated invalid pixels (e.g. clipped)
+    )
     return image.astype(np.float32), mask
 
 
@@ -117,7 +119,11 @@ def test_scale_equivariance_and_channel_independence():
 
 @pytest.mark.parametrize(
     "order, p, sigma",
-    [(1, 6.0, 1.0), pytest.param(2, 1.0, 0.0, marks=pytest.mark.slow), pytest.param(0, math.inf, 1.0, marks=pytest.mark.slow)],
+    [
+        (1, 6.0, 1.0),
+        pytest.param(2, 1.0, 0.0, marks=pytest.mark.slow),
+        pytest.param(0, math.inf, 1.0, marks=pytest.mark.slow),
+    ],
 )
 def test_gradients(order, p, sigma):
     with jax.enable_x64(True):

@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import require_external_data
 
 from ccjax import data, spectra
 from ccjax.camera import Camera, cameras
 from ccjax.metrics import angular_error
-from ccjax.world import World, build_illuminant_set, normalise_illuminants
-from conftest import require_external_data
+from ccjax.world import build_illuminant_set, normalise_illuminants
 
 
 def test_grid():
@@ -20,7 +20,7 @@ def test_resample_sensor_zero_outside_spectrum_edge_held():
     values = np.array([1.0, 2.0, 3.0])
     sensor = spectra.resample(wl, values, kind="sensor")
     spectrum = spectra.resample(wl, values, kind="spectrum")
-    at = lambda x: int(np.flatnonzero(spectra.WAVELENGTHS == x)[0])  # noqa: E731
+    at = lambda x: int(np.flatnonzero(spectra.WAVELENGTHS == x)[0])
     assert sensor[at(380)] == 0 and sensor[at(700)] == 0
     assert spectrum[at(380)] == 1 and spectrum[at(700)] == 3
     assert sensor[at(448)] == pytest.approx(1.48) and spectrum[at(552)] == pytest.approx(2.52)
@@ -107,7 +107,10 @@ def test_barnard_world_matches_sfu321_groundtruth(barnard_world):
 def test_barnard_world_training_set_places_lab_lights_first(barnard_world):
     require_external_data()
     lights = data.sfu_illuminants()
-    lab = normalise_illuminants(lights.values[[lights.names.index(n) for n in data.SFU_LAB_LIGHTS.values()]], np.asarray(barnard_world.camera.sensors))
+    lab = normalise_illuminants(
+        lights.values[[lights.names.index(n) for n in data.SFU_LAB_LIGHTS.values()]],
+        np.asarray(barnard_world.camera.sensors),
+    )
     np.testing.assert_allclose(np.asarray(barnard_world.train_illuminants[:11]), lab, rtol=1e-5)
     # about 90 training cells of 0.02 (VERIFIED.md §6 counts 88)
     assert 80 <= barnard_world.sizes()["training illuminants"] <= 100

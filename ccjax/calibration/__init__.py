@@ -12,6 +12,22 @@
   (Fig. 3.6) and the plots behind ``ccjax calibrate``.
 """
 
+from ccjax.calibration.batch import (
+    BatchFit,
+    CrossValidation,
+    evaluate_batch,
+    fit_sensors_batch,
+    fit_sensors_cv,
+    fit_subsets,
+    random_subsets,
+)
+from ccjax.calibration.files import (
+    CalibrationData,
+    CalibrationFileError,
+    read_calibration_csv,
+    write_calibration_csv,
+    write_sensors_csv,
+)
 from ccjax.calibration.fitting import (
     DEFAULT_SMOOTHNESS,
     FitErrors,
@@ -27,40 +43,38 @@ from ccjax.calibration.fitting import (
     second_difference,
     support_of,
 )
-from ccjax.calibration.batch import BatchFit, CrossValidation, evaluate_batch, fit_sensors_batch, fit_sensors_cv, fit_subsets, random_subsets
-from ccjax.calibration.files import CalibrationData, CalibrationFileError, read_calibration_csv, write_calibration_csv, write_sensors_csv
 from ccjax.calibration.noise import NoiseModel, fit_noise_model, synthetic_repeats
 from ccjax.calibration.synthetic import SyntheticCalibration, synthetic_calibration
 
 __all__ = [
+    "DEFAULT_SMOOTHNESS",
     "BatchFit",
     "CalibrationData",
     "CalibrationFileError",
     "CrossValidation",
-    "NoiseModel",
-    "evaluate_batch",
-    "fit_noise_model",
-    "fit_sensors_batch",
-    "fit_sensors_cv",
-    "fit_subsets",
-    "random_subsets",
-    "read_calibration_csv",
-    "synthetic_repeats",
-    "write_calibration_csv",
-    "write_sensors_csv",
-    "DEFAULT_SMOOTHNESS",
     "FitErrors",
     "FitStatus",
     "Linearisation",
+    "NoiseModel",
     "SensorFit",
     "SyntheticCalibration",
     "apply_linearisation",
     "curve_error",
+    "evaluate_batch",
     "fit_errors",
+    "fit_noise_model",
     "fit_sensors",
+    "fit_sensors_batch",
+    "fit_sensors_cv",
+    "fit_subsets",
     "invert_linearisation",
     "pseudo_inverse",
+    "random_subsets",
+    "read_calibration_csv",
     "second_difference",
     "support_of",
     "synthetic_calibration",
+    "synthetic_repeats",
+    "write_calibration_csv",
+    "write_sensors_csv",
 ]

@@ -128,7 +128,9 @@ def _polish(Qs, cs, y, lower, upper):
         return z_new, P_new, ok | ~finite, count + 1
 
     def consistent(z, P):
-        return jax.lax.while_loop(lambda st: ~st[2] & (st[3] < n), inner_step, (z, P, jnp.asarray(False), jnp.asarray(0)))[:2]
+        return jax.lax.while_loop(
+            lambda st: ~st[2] & (st[3] < n), inner_step, (z, P, jnp.asarray(False), jnp.asarray(0))
+        )[:2]
 
     def outer_step(state):
         z, P, _, steps = state
@@ -146,7 +148,9 @@ def _polish(Qs, cs, y, lower, upper):
     if n == 0:
         return y
     z, passive = consistent(z, passive)
-    z, _, _, _ = jax.lax.while_loop(lambda st: ~st[2] & (st[3] < POLISH_STEPS), outer_step, (z, passive, jnp.asarray(False), jnp.asarray(0)))
+    z, _, _, _ = jax.lax.while_loop(
+        lambda st: ~st[2] & (st[3] < POLISH_STEPS), outer_step, (z, passive, jnp.asarray(False), jnp.asarray(0))
+    )
     return jnp.where(fixed, lower, offset + sign * z)
 
 
@@ -233,15 +237,26 @@ def _polish_qp(Qs, cs, A, l, u, x, z, y):
     active = (at_lower | at_upper).astype(dtype)
     target = jnp.where(at_lower, l, jnp.where(at_upper, u, 0.0))
     reg = 1e3 * jnp.finfo(dtype).eps
-    K = jnp.block([[Qs + reg * jnp.eye(n, dtype=dtype), A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active + reg * active)]])
+    K = jnp.block(
+        [
+            [Qs + reg * jnp.eye(n, dtype=dtype), A.T * active[None, :]],
+            [A * active[:, None], -jnp.diag(1.0 - active + reg * active)],
+        ]
+    )
     rhs = jnp.concatenate([cs, active * target])
     solution = jnp.linalg.solve(K, rhs)
     for _ in range(2):  # iterative refinement against the regularisation
-        residual = rhs - jnp.block([[Qs, A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active)]]) @ solution
+        residual = (
+            rhs - jnp.block([[Qs, A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active)]]) @ solution
+        )
         solution = solution + jnp.linalg.solve(K, residual)
     xp, nu = solution[:n], solution[n:]
     Ax = A @ xp
-    scale = 1.0 + jnp.max(jnp.abs(jnp.where(jnp.isfinite(l), l, 0.0))) + jnp.max(jnp.abs(jnp.where(jnp.isfinite(u), u, 0.0)))
+    scale = (
+        1.0
+        + jnp.max(jnp.abs(jnp.where(jnp.isfinite(l), l, 0.0)))
+        + jnp.max(jnp.abs(jnp.where(jnp.isfinite(u), u, 0.0)))
+    )
     tol = jnp.sqrt(jnp.finfo(dtype).eps) * scale
     feasible = jnp.all((Ax >= l - tol) & (Ax <= u + tol))
     # Stationarity Qx - c + Aᵀnu = 0 with nu <= 0 on lower-active and >= 0 on upper-active rows.
@@ -294,11 +309,15 @@ def solve_qp(
     polished, ok = _polish_qp(Qs, cs, A, l, u, x, z, result.params.dual_eq)
     y = jnp.where(ok, polished, x)
     residual = _relative_residual(Qs, cs, y, lo, hi)  # bound part only; the polish checks the rest
-    return Solution(x=y * d, kkt_residual=residual, iterations=result.state.iter_num, converged=ok | (result.state.status == 1))
+    return Solution(
+        x=y * d, kkt_residual=residual, iterations=result.state.iter_num, converged=ok | (result.state.status == 1)
+    )
 
 
 def solve_least_squares(A: Float[Array, "m n"], b: Float[Array, " m"]) -> Solution:
     """Minimum-norm least squares ``A x ≈ b`` by SVD: the pseudo-inverse method (eq. 3.3)."""
     x, *_ = jnp.linalg.lstsq(A, b)
     ok = jnp.all(jnp.isfinite(x))
-    return Solution(x=jnp.where(ok, x, 0.0), kkt_residual=jnp.asarray(0.0, A.dtype), iterations=jnp.asarray(1), converged=ok)
+    return Solution(
+        x=jnp.where(ok, x, 0.0), kkt_residual=jnp.asarray(0.0, A.dtype), iterations=jnp.asarray(1), converged=ok
+    )

@@ -56,13 +56,34 @@ class BatchFit(eqx.Module):
 
 
 def _options_for(**options):
-    keys = ("smoothness", "error", "positive", "support", "max_abs_error", "max_rel_error", "weight_cap", "linearisation", "black", "exp_rate", "maxiter")
+    keys = (
+        "smoothness",
+        "error",
+        "positive",
+        "support",
+        "max_abs_error",
+        "max_rel_error",
+        "weight_cap",
+        "linearisation",
+        "black",
+        "exp_rate",
+        "maxiter",
+    )
     unknown = set(options) - set(keys)
     if unknown:
         raise ValueError(f"unknown fitting option(s): {sorted(unknown)}")
     full = dict(
-        smoothness=DEFAULT_SMOOTHNESS, error="relative", positive=True, support=None, max_abs_error=None, max_rel_error=None,
-        weight_cap=None, linearisation=None, black=None, exp_rate=None, maxiter=None,
+        smoothness=DEFAULT_SMOOTHNESS,
+        error="relative",
+        positive=True,
+        support=None,
+        max_abs_error=None,
+        max_rel_error=None,
+        weight_cap=None,
+        linearisation=None,
+        black=None,
+        exp_rate=None,
+        maxiter=None,
     )
     full.update(options)
     return _plan(**full)
@@ -75,7 +96,14 @@ def _fit_many(spectra, raw, masks, options: _Options, smoothness, solver: str, s
     def one(spectra, raw, mask, lam):
         fits, rates = _fit_data_set(spectra, raw, mask, options._replace(smoothness=lam), solver, search)
         sensors = fits.sensor.T
-        return sensors, fits.a0, fits.a1, rates, fits.solution.converged, fit_errors(spectra @ sensors, fits.linear.T, mask)
+        return (
+            sensors,
+            fits.a0,
+            fits.a1,
+            rates,
+            fits.solution.converged,
+            fit_errors(spectra @ sensors, fits.linear.T, mask),
+        )
 
     return jax.vmap(one)(spectra, raw, masks, smoothness)
 
@@ -93,7 +121,9 @@ def _run_chunks(spectra, raw, masks, smoothness, plan, chunk_size: int):
         index = np.arange(start, min(start + chunk_size, total))
         padded = np.concatenate([index, np.full(chunk_size - index.size, index[0])])
         out = _fit_many(
-            jnp.asarray(spectra[padded] if spectra.ndim == 3 else np.broadcast_to(spectra, (chunk_size,) + spectra.shape), dtype),
+            jnp.asarray(
+                spectra[padded] if spectra.ndim == 3 else np.broadcast_to(spectra, (chunk_size,) + spectra.shape), dtype
+            ),
             jnp.asarray(raw[padded] if raw.ndim == 3 else np.broadcast_to(raw, (chunk_size,) + raw.shape), dtype),
             jnp.asarray(masks[padded]),
             plan.options,
@@ -179,7 +209,9 @@ def fit_subsets(
         raise ValueError(f"masks: expected shape (B, {spectra.shape[0]}), got {masks.shape}")
     if not np.all(masks.any(axis=1)):
         raise ValueError("masks: a mask selects no measurement")
-    lam = np.broadcast_to(np.asarray(DEFAULT_SMOOTHNESS if smoothness is None else smoothness, dtype=np.float64), (masks.shape[0],))
+    lam = np.broadcast_to(
+        np.asarray(DEFAULT_SMOOTHNESS if smoothness is None else smoothness, dtype=np.float64), (masks.shape[0],)
+    )
     if not np.all(np.isfinite(lam)) or np.any(lam < 0):
         raise ValueError("smoothness: expected finite values >= 0")
     plan = _options_for(smoothness=float(lam[0]), **options)
@@ -289,7 +321,9 @@ def fit_sensors_cv(
     raw = jnp.broadcast_to(jnp.asarray(responses, dtype), (lam.size,) + responses.shape)
     linear = fits.linearise(raw) if linearised else raw
     held = jnp.asarray(np.tile(held_out, (grid.size, 1)))
-    errors = jax.vmap(lambda s, lin, m: fit_errors(jnp.asarray(spectra, dtype) @ s, lin, m).rms_relative)(fits.sensors, linear, held)
+    errors = jax.vmap(lambda s, lin, m: fit_errors(jnp.asarray(spectra, dtype) @ s, lin, m).rms_relative)(
+        fits.sensors, linear, held
+    )
     errors = np.asarray(errors).reshape(grid.size, folds)
     best = float(grid[int(np.argmin(errors.mean(axis=1)))])
     fit = fit_sensors(spectra, responses, smoothness=best, mask=mask, name=name, **options)

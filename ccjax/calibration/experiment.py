@@ -137,25 +137,82 @@ def calibration_table(
     raw = np.asarray(raw, dtype=np.float64)
     spectra = np.asarray(spectra, dtype=np.float64)
     rows: list[tuple[str, SensorFit]] = []
-    joint = fit_sensors(spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=exp_rate, name=JOINT)
+    joint = fit_sensors(
+        spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=exp_rate, name=JOINT
+    )
     support = support_of(np.asarray(joint.sensors))
     rates = joint.linearisation.exp_rate
     rows.append((JOINT, joint))
-    rows.append((JOINT_RANGE, fit_sensors(spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=rates, support=support, name=JOINT_RANGE)))
+    rows.append(
+        (
+            JOINT_RANGE,
+            fit_sensors(
+                spectra,
+                raw,
+                smoothness=smoothness,
+                linearisation="exp",
+                black=black,
+                exp_rate=rates,
+                support=support,
+                name=JOINT_RANGE,
+            ),
+        )
+    )
     linear = np.asarray(joint.linear, dtype=np.float64)
     positive_rows = np.all(linear > 0, axis=1)
     # Relative fits need positive responses; masked rows keep a placeholder value.
     linear_positive = np.where(positive_rows[:, None], linear, 1.0)
     rows.append((PSEUDO_INVERSE, pseudo_inverse(spectra, linear, name=PSEUDO_INVERSE)))
     rows.append((PSEUDO_INVERSE_POSITIVE, pseudo_inverse(spectra, linear, positive=True, name=PSEUDO_INVERSE_POSITIVE)))
-    rows.append((NO_POSITIVITY, fit_sensors(spectra, linear_positive, smoothness=smoothness, positive=False, mask=positive_rows, name=NO_POSITIVITY)))
-    rows.append((LINEARISED, fit_sensors(spectra, linear_positive, smoothness=smoothness, mask=positive_rows, name=LINEARISED)))
-    rows.append((LINEARISED_RANGE, fit_sensors(spectra, linear_positive, smoothness=smoothness, support=support, mask=positive_rows, name=LINEARISED_RANGE)))
-    rows.append((OFFSET, fit_sensors(spectra, raw, smoothness=smoothness, linearisation="offset", black=black, name=OFFSET)))
+    rows.append(
+        (
+            NO_POSITIVITY,
+            fit_sensors(
+                spectra, linear_positive, smoothness=smoothness, positive=False, mask=positive_rows, name=NO_POSITIVITY
+            ),
+        )
+    )
+    rows.append(
+        (LINEARISED, fit_sensors(spectra, linear_positive, smoothness=smoothness, mask=positive_rows, name=LINEARISED))
+    )
+    rows.append(
+        (
+            LINEARISED_RANGE,
+            fit_sensors(
+                spectra,
+                linear_positive,
+                smoothness=smoothness,
+                support=support,
+                mask=positive_rows,
+                name=LINEARISED_RANGE,
+            ),
+        )
+    )
+    rows.append(
+        (OFFSET, fit_sensors(spectra, raw, smoothness=smoothness, linearisation="offset", black=black, name=OFFSET))
+    )
     subtracted = raw - black
     above = np.all(subtracted > 0, axis=1)
-    rows.append((BLACK_SUBTRACTED, fit_sensors(spectra, np.where(above[:, None], subtracted, 1.0), smoothness=smoothness, mask=above, name=BLACK_SUBTRACTED)))
-    rows.append((IGNORE_F, fit_sensors(spectra, np.where(raw > 0, raw, 1.0), smoothness=smoothness, mask=np.all(raw > 0, axis=1), name=IGNORE_F)))
+    rows.append(
+        (
+            BLACK_SUBTRACTED,
+            fit_sensors(
+                spectra,
+                np.where(above[:, None], subtracted, 1.0),
+                smoothness=smoothness,
+                mask=above,
+                name=BLACK_SUBTRACTED,
+            ),
+        )
+    )
+    rows.append(
+        (
+            IGNORE_F,
+            fit_sensors(
+                spectra, np.where(raw > 0, raw, 1.0), smoothness=smoothness, mask=np.all(raw > 0, axis=1), name=IGNORE_F
+            ),
+        )
+    )
     out = []
     for label, fit in rows:
         row = Row(label=label, fit=fit, errors=fit.errors.as_dict())
@@ -171,7 +228,9 @@ def calibration_table(
     ]
     if truth is not None:
         t = truth.linearisation
-        notes.insert(1, f"true linearisation: a0 = {t.a0[0]:g}, a1 = {t.a1[0]:g}, C = {t.exp_rate[0]:g}, b = {t.black[0]:g}")
+        notes.insert(
+            1, f"true linearisation: a0 = {t.a0[0]:g}, a1 = {t.a1[0]:g}, C = {t.exp_rate[0]:g}, b = {t.black[0]:g}"
+        )
         notes.append(f"noise level (RMS relative noise of the usable measurements): {100 * truth.noise_level:.2f} %")
     return CalibrationTable(
         rows=out,
@@ -192,12 +251,16 @@ class HeldOut:
     errors: dict[str, float]  # label -> held-out RMS relative error (fraction)
 
     def text(self) -> str:
-        lines = [f"held-out check: fit on {len(self.train_rows)} measurements, RMS relative error on the other {len(self.test_rows)}"]
+        lines = [
+            f"held-out check: fit on {len(self.train_rows)} measurements, RMS relative error on the other {len(self.test_rows)}"
+        ]
         lines += [f"  {label:<50}{100 * e:9.2f} %" for label, e in self.errors.items()]
         return "\n".join(lines)
 
 
-def held_out(spectra, raw, *, black: float = 0.0, exp_rate=None, smoothness: float = DEFAULT_SMOOTHNESS, seed: int = 0) -> HeldOut:
+def held_out(
+    spectra, raw, *, black: float = 0.0, exp_rate=None, smoothness: float = DEFAULT_SMOOTHNESS, seed: int = 0
+) -> HeldOut:
     """The proposed joint fit against the pseudo-inverse baselines on a random half held out.
 
     The halves are row masks over the full arrays, so the fits reuse the programs compiled for
@@ -209,12 +272,16 @@ def held_out(spectra, raw, *, black: float = 0.0, exp_rate=None, smoothness: flo
     train = np.zeros(len(spectra), bool)
     train[order[: len(order) // 2]] = True
     test = ~train
-    joint = fit_sensors(spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=exp_rate, mask=train)
+    joint = fit_sensors(
+        spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=exp_rate, mask=train
+    )
     linear = np.asarray(joint.linear, dtype=np.float64)  # every row through the train fit's F
     positive = np.all(linear > 0, axis=1)
     fits = {
         JOINT: joint,
-        LINEARISED: fit_sensors(spectra, np.where(positive[:, None], linear, 1.0), smoothness=smoothness, mask=train & positive),
+        LINEARISED: fit_sensors(
+            spectra, np.where(positive[:, None], linear, 1.0), smoothness=smoothness, mask=train & positive
+        ),
         PSEUDO_INVERSE: pseudo_inverse(spectra, linear, mask=train),
         PSEUDO_INVERSE_POSITIVE: pseudo_inverse(spectra, linear, positive=True, mask=train),
     }
@@ -244,11 +311,20 @@ class Robustness:
             lines.append(f"{label:<52}" + "".join(f"{100 * v:9.2f}" for v in m))
         lines.append("degradation (error at the smallest size / error at the largest):")
         for label, m in self.mean().items():
-            lines.append(f"  {label:<50}{m[-1] / m[0]:9.1f}x   (solver converged in {100 * self.converged[label]:.0f} % of fits)")
+            lines.append(
+                f"  {label:<50}{m[-1] / m[0]:9.1f}x   (solver converged in {100 * self.converged[label]:.0f} % of fits)"
+            )
         return "\n".join(lines)
 
     def to_json(self) -> str:
-        return json.dumps({"sizes": list(self.sizes), "n_subsets": self.n_subsets, "mean_rms_relative": {k: v.tolist() for k, v in self.mean().items()}}, indent=2)
+        return json.dumps(
+            {
+                "sizes": list(self.sizes),
+                "n_subsets": self.n_subsets,
+                "mean_rms_relative": {k: v.tolist() for k, v in self.mean().items()},
+            },
+            indent=2,
+        )
 
 
 def robustness(
@@ -285,7 +361,10 @@ def robustness(
         LINEARISED: (linear, dict(smoothness=smoothness)),
         LINEARISED_RANGE: (linear, dict(smoothness=smoothness, support=support)),
         JOINT: (raw, dict(smoothness=smoothness, linearisation="exp", black=black, exp_rate=rates)),
-        JOINT_RANGE: (raw, dict(smoothness=smoothness, linearisation="exp", black=black, exp_rate=rates, support=support)),
+        JOINT_RANGE: (
+            raw,
+            dict(smoothness=smoothness, linearisation="exp", black=black, exp_rate=rates, support=support),
+        ),
     }
     errors = {label: np.zeros((len(sizes), n_subsets)) for label in methods}
     converged = {label: 0.0 for label in methods}
@@ -445,7 +524,13 @@ def noise_experiment(gain: float, floor: float, *, seed: int = 0) -> tuple[np.nd
 
 
 def synthetic_experiment(
-    camera="Sony DXC-930", *, seed: int = 0, smoothness: float | None = None, cv: bool = False, exp_rate=None, data_dir=None
+    camera="Sony DXC-930",
+    *,
+    seed: int = 0,
+    smoothness: float | None = None,
+    cv: bool = False,
+    exp_rate=None,
+    data_dir=None,
 ) -> SyntheticReport:
     """The thesis' calibration experiment with a known camera (§3.5–3.6), end to end."""
     from ccjax.calibration.batch import fit_sensors_cv
@@ -456,11 +541,32 @@ def synthetic_experiment(
     spectra, raw = data.usable_data()
     cross_validation = None
     if cv:
-        _, cross_validation = fit_sensors_cv(spectra, raw, linearisation="exp", black=black, exp_rate=data.linearisation.exp_rate[0], seed=seed)
+        _, cross_validation = fit_sensors_cv(
+            spectra, raw, linearisation="exp", black=black, exp_rate=data.linearisation.exp_rate[0], seed=seed
+        )
         smoothness = cross_validation.best
     smoothness = DEFAULT_SMOOTHNESS if smoothness is None else smoothness
-    table = calibration_table(spectra, raw, black=black, exp_rate=exp_rate, smoothness=smoothness, truth=data, truth_rows=np.flatnonzero(data.usable))
-    check = held_out(spectra, raw, black=black, exp_rate=table.row(JOINT).fit.linearisation.exp_rate, smoothness=smoothness, seed=seed)
+    table = calibration_table(
+        spectra,
+        raw,
+        black=black,
+        exp_rate=exp_rate,
+        smoothness=smoothness,
+        truth=data,
+        truth_rows=np.flatnonzero(data.usable),
+    )
+    check = held_out(
+        spectra,
+        raw,
+        black=black,
+        exp_rate=table.row(JOINT).fit.linearisation.exp_rate,
+        smoothness=smoothness,
+        seed=seed,
+    )
     return SyntheticReport(
-        data=data, table=table, held_out=check, noise_fit=noise_experiment(data.noise_gain, data.noise_floor, seed=seed), cross_validation=cross_validation
+        data=data,
+        table=table,
+        held_out=check,
+        noise_fit=noise_experiment(data.noise_gain, data.noise_floor, seed=seed),
+        cross_validation=cross_validation,
     )

@@ -42,7 +42,11 @@ class CalibrationData:
 
 
 def _column_name(index: int) -> str:
-    return f"{index + 1} ({COLUMNS[index]} {'nm' if index < N_WAVELENGTHS else 'response'})" if index < len(COLUMNS) else str(index + 1)
+    return (
+        f"{index + 1} ({COLUMNS[index]} {'nm' if index < N_WAVELENGTHS else 'response'})"
+        if index < len(COLUMNS)
+        else str(index + 1)
+    )
 
 
 def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -> CalibrationData:
@@ -75,16 +79,24 @@ def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -
                 try:
                     value = float(text)
                 except ValueError:
-                    raise CalibrationFileError(f"{path}: line {line_number}, column {_column_name(column)}: not a number: {text!r}") from None
+                    raise CalibrationFileError(
+                        f"{path}: line {line_number}, column {_column_name(column)}: not a number: {text!r}"
+                    ) from None
                 if not np.isfinite(value):
-                    raise CalibrationFileError(f"{path}: line {line_number}, column {_column_name(column)}: not a finite number: {text!r}")
+                    raise CalibrationFileError(
+                        f"{path}: line {line_number}, column {_column_name(column)}: not a finite number: {text!r}"
+                    )
                 if value < 0:
-                    raise CalibrationFileError(f"{path}: line {line_number}, column {_column_name(column)}: negative value {value:g}")
+                    raise CalibrationFileError(
+                        f"{path}: line {line_number}, column {_column_name(column)}: negative value {value:g}"
+                    )
                 values.append(value)
             rows.append(values)
             lines.append(line_number)
     if len(rows) < min_rows:
-        raise CalibrationFileError(f"{path}: {len(rows)} measurement rows; at least {min_rows} are needed to fit sensors")
+        raise CalibrationFileError(
+            f"{path}: {len(rows)} measurement rows; at least {min_rows} are needed to fit sensors"
+        )
     table = np.asarray(rows, dtype=np.float64)
     spectra, responses = table[:, :N_WAVELENGTHS], table[:, N_WAVELENGTHS:]
     for k, name in enumerate("RGB"):
@@ -119,7 +131,9 @@ def _check_header(path: str, line_number: int, fields: list[str]) -> None:
         else:
             ok = got.upper() == want
         if not ok:
-            raise CalibrationFileError(f"{path}: line {line_number} (header), column {column + 1}: expected {want!r}, found {got!r}")
+            raise CalibrationFileError(
+                f"{path}: line {line_number} (header), column {column + 1}: expected {want!r}, found {got!r}"
+            )
 
 
 def write_calibration_csv(path: str | os.PathLike, spectra: np.ndarray, responses: np.ndarray) -> None:
@@ -127,7 +141,9 @@ def write_calibration_csv(path: str | os.PathLike, spectra: np.ndarray, response
     spectra = np.asarray(spectra, dtype=np.float64)
     responses = np.asarray(responses, dtype=np.float64)
     if spectra.ndim != 2 or spectra.shape[1] != N_WAVELENGTHS or responses.shape != (spectra.shape[0], 3):
-        raise ValueError(f"spectra/responses: expected (M, {N_WAVELENGTHS}) and (M, 3), got {spectra.shape} and {responses.shape}")
+        raise ValueError(
+            f"spectra/responses: expected (M, {N_WAVELENGTHS}) and (M, 3), got {spectra.shape} and {responses.shape}"
+        )
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(COLUMNS)
@@ -146,6 +162,6 @@ def write_sensors_csv(path: str | os.PathLike, sensors: np.ndarray, linearisatio
                 f"C={list(linearisation.exp_rate)} b={list(linearisation.black)}\n"
             )
         writer = csv.writer(f)
-        writer.writerow(["wavelength_nm", "R", "G", "B"])
+        writer.writerow(["wavelength_nm", "R", "G", " B"])
         for w, row in zip(WAVELENGTHS, sensors):
             writer.writerow([f"{w:g}"] + [f"{v:.9g}" for v in row])

@@ -72,7 +72,9 @@ class Linearisation:
     black: tuple[float, float, float]
 
     def __call__(self, raw: Float[Array, "... 3"]) -> Float[Array, "... 3"]:
-        return apply_linearisation(raw, jnp.asarray(self.a0), jnp.asarray(self.a1), jnp.asarray(self.exp_rate), jnp.asarray(self.black))
+        return apply_linearisation(
+            raw, jnp.asarray(self.a0), jnp.asarray(self.a1), jnp.asarray(self.exp_rate), jnp.asarray(self.black)
+        )
 
 
 def apply_linearisation(raw, a0, a1, exp_rate, black):
@@ -240,7 +242,9 @@ def _fit_channel(spectra, raw, mask, options: _Options, lower, upper, black, exp
         typical = jnp.maximum(_masked_mean(linear_estimate, mask & (linear_estimate > 0)), floor)
         scale_rho = jnp.where(options.relative, jnp.maximum(linear_estimate, floor), typical)
         weight = jnp.where(mask, 1.0 / scale_rho, 0.0)
-        sensor_scale = _masked_mean(jnp.maximum(linear_estimate, 0.0), mask) / jnp.maximum(_masked_mean(row_sum, mask), tiny)
+        sensor_scale = _masked_mean(jnp.maximum(linear_estimate, 0.0), mask) / jnp.maximum(
+            _masked_mean(row_sum, mask), tiny
+        )
         penalty = (options.smoothness / jnp.maximum(sensor_scale, tiny)) ** 2 * roughness
         weighted = design * weight[:, None]
         Q = weighted.T @ weighted + penalty
@@ -270,11 +274,21 @@ def _fit_channel(spectra, raw, mask, options: _Options, lower, upper, black, exp
         return linearised(sol.x), sol, objective
 
     empty = _solvers.Solution(
-        x=jnp.zeros(n_wl + 2, dtype), kkt_residual=jnp.asarray(0.0, dtype), iterations=jnp.asarray(0), converged=jnp.asarray(False)
+        x=jnp.zeros(n_wl + 2, dtype),
+        kkt_residual=jnp.asarray(0.0, dtype),
+        iterations=jnp.asarray(0),
+        converged=jnp.asarray(False),
     )
     first = raw - jnp.where(options.linearised, black, 0.0)
     _, sol, objective = jax.lax.fori_loop(0, passes, one_pass, (first, empty, jnp.asarray(0.0, dtype)))
-    return _ChannelFit(sensor=sol.x[:n_wl], a0=sol.x[n_wl], a1=sol.x[n_wl + 1], linear=linearised(sol.x), objective=objective, solution=sol)
+    return _ChannelFit(
+        sensor=sol.x[:n_wl],
+        a0=sol.x[n_wl],
+        a1=sol.x[n_wl + 1],
+        linear=linearised(sol.x),
+        objective=objective,
+        solution=sol,
+    )
 
 
 @functools.partial(jax.jit, static_argnames="solver")
@@ -284,7 +298,7 @@ def _fit_kernel(spectra, raw, mask, options: _Options, solver: str) -> _ChannelF
     BoxOSQP's channels run one after the other (``lax.map``) instead: under ``vmap`` its
     data-dependent refactorisations (``lax.cond``) would run at every ADMM iteration.
     """
-    one = lambda r, lo, hi, b, C: _fit_channel(spectra, r, mask, options, lo, hi, b, C, solver)  # noqa: E731
+    one = lambda r, lo, hi, b, C: _fit_channel(spectra, r, mask, options, lo, hi, b, C, solver)
     per_channel = (raw.T, options.lower.T, options.upper.T, options.black, options.exp_rate)
     if solver == "osqp":
         return jax.lax.map(lambda args: one(*args), per_channel)
@@ -339,7 +353,9 @@ def _check_data(spectra, responses, mask=None):
     spectra = np.asarray(spectra, dtype=np.float64)
     responses = np.asarray(responses, dtype=np.float64)
     if spectra.ndim != 2 or spectra.shape[1] != N_WAVELENGTHS:
-        raise ValueError(f"spectra: expected shape (M, {N_WAVELENGTHS}) on ccjax.spectra.WAVELENGTHS, got {spectra.shape}")
+        raise ValueError(
+            f"spectra: expected shape (M, {N_WAVELENGTHS}) on ccjax.spectra.WAVELENGTHS, got {spectra.shape}"
+        )
     if responses.shape != (spectra.shape[0], 3):
         raise ValueError(f"responses: expected shape ({spectra.shape[0]}, 3) to match spectra, got {responses.shape}")
     if not np.all(np.isfinite(spectra)):
@@ -381,7 +397,20 @@ class _Plan(NamedTuple):
     kind: str | None
 
 
-def _plan(*, smoothness, error, positive, support, max_abs_error, max_rel_error, weight_cap, linearisation, black, exp_rate, maxiter) -> _Plan:
+def _plan(
+    *,
+    smoothness,
+    error,
+    positive,
+    support,
+    max_abs_error,
+    max_rel_error,
+    weight_cap,
+    linearisation,
+    black,
+    exp_rate,
+    maxiter,
+) -> _Plan:
     """Validate the fitting options and turn them into traced arrays plus the static choices."""
     if error not in ("relative", "absolute"):
         raise ValueError(f"error: expected 'relative' or 'absolute', got {error!r}")
@@ -406,8 +435,12 @@ def _plan(*, smoothness, error, positive, support, max_abs_error, max_rel_error,
     # a0 and a1 are free when fitted and pinned to 0 by their bounds otherwise.
     free_a0 = linearisation is not None
     free_a1 = linearisation == "exp"
-    lower = np.concatenate([lower, np.full((1, 3), -np.inf if free_a0 else 0.0), np.full((1, 3), -np.inf if free_a1 else 0.0)])
-    upper = np.concatenate([upper, np.full((1, 3), np.inf if free_a0 else 0.0), np.full((1, 3), np.inf if free_a1 else 0.0)])
+    lower = np.concatenate(
+        [lower, np.full((1, 3), -np.inf if free_a0 else 0.0), np.full((1, 3), -np.inf if free_a1 else 0.0)]
+    )
+    upper = np.concatenate(
+        [upper, np.full((1, 3), np.inf if free_a0 else 0.0), np.full((1, 3), np.inf if free_a1 else 0.0)]
+    )
     if max_abs_error is not None or max_rel_error is not None:
         solver = "osqp"
     elif positive or support is not None or smoothness > 0 or linearisation is not None:
@@ -440,10 +473,14 @@ def _data_arrays(spectra, responses, mask, plan: _Plan):
     if not mask.any():
         raise ValueError("mask: selects no measurement")
     if plan.kind is None and bool(plan.options.relative) and np.any(responses[mask] <= 0):
-        raise ValueError("responses: relative-error fitting of linear responses needs every used response > 0 (mask the others)")
+        raise ValueError(
+            "responses: relative-error fitting of linear responses needs every used response > 0 (mask the others)"
+        )
     flat = np.flatnonzero(np.all(responses[mask] <= responses[mask].min(axis=0), axis=0))
     if flat.size:
-        raise ValueError(f"responses: channel {'RGB'[flat[0]]} has the same value in every used measurement; nothing to fit")
+        raise ValueError(
+            f"responses: channel {'RGB'[flat[0]]} has the same value in every used measurement; nothing to fit"
+        )
     dtype = plan.options.smoothness.dtype
     return jnp.asarray(spectra, dtype), jnp.asarray(responses, dtype), jnp.asarray(mask)
 
@@ -498,16 +535,28 @@ def fit_sensors(
         the normal equations); the SVD pseudo-inverse for ``smoothness=0`` without any constraint.
     """
     plan = _plan(
-        smoothness=smoothness, error=error, positive=positive, support=support, max_abs_error=max_abs_error,
-        max_rel_error=max_rel_error, weight_cap=weight_cap, linearisation=linearisation, black=black,
-        exp_rate=exp_rate, maxiter=maxiter,
+        smoothness=smoothness,
+        error=error,
+        positive=positive,
+        support=support,
+        max_abs_error=max_abs_error,
+        max_rel_error=max_rel_error,
+        weight_cap=weight_cap,
+        linearisation=linearisation,
+        black=black,
+        exp_rate=exp_rate,
+        maxiter=maxiter,
     )
     data = _data_arrays(spectra, responses, mask, plan)
     fits, rates = _fit_data_set(*data, plan.options, plan.solver, plan.search)
     return _assemble(fits, rates, data, plan, float(smoothness), name)
 
 
-SOLVER_NAMES = {"box": "jaxopt.ProjectedGradient + active-set polish", "osqp": "jaxopt.BoxOSQP", "lstsq": "SVD pseudo-inverse"}
+SOLVER_NAMES = {
+    "box": "jaxopt.ProjectedGradient + active-set polish",
+    "osqp": "jaxopt.BoxOSQP",
+    "lstsq": "SVD pseudo-inverse",
+}
 
 
 def _assemble(fits: _ChannelFit, rates, data, plan: _Plan, smoothness: float, name: str) -> SensorFit:

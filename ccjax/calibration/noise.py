@@ -82,7 +82,10 @@ def fit_noise_model(samples: Float[np.ndarray, "R N C"]) -> NoiseModel:
     coef = np.stack([_fit_line(mean[:, k], variance[:, k]) for k in range(samples.shape[2])])
     dtype = jnp.zeros(0).dtype
     return NoiseModel(
-        gain=jnp.asarray(coef[:, 0], dtype), floor=jnp.asarray(coef[:, 1], dtype), mean=jnp.asarray(mean, dtype), variance=jnp.asarray(variance, dtype)
+        gain=jnp.asarray(coef[:, 0], dtype),
+        floor=jnp.asarray(coef[:, 1], dtype),
+        mean=jnp.asarray(mean, dtype),
+        variance=jnp.asarray(variance, dtype),
     )
 
 

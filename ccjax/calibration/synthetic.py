@@ -40,9 +40,32 @@ EXPOSURES = (0.5, 1.4)
 COLORCHECKER = "ColorChecker N Ohta"
 
 CIE_LIGHTS: tuple[str, ...] = (
-    "A", "D50", "D55", "D65", "D75",
-    "FL1", "FL2", "FL3", "FL4", "FL5", "FL6", "FL7", "FL8", "FL9", "FL10", "FL11", "FL12",
-    "LED-B1", "LED-B2", "LED-B3", "LED-B4", "LED-B5", "LED-BH1", "LED-RGB1", "LED-V1", "LED-V2",
+    "A",
+    "D50",
+    "D55",
+    "D65",
+    "D75",
+    "FL1",
+    "FL2",
+    "FL3",
+    "FL4",
+    "FL5",
+    "FL6",
+    "FL7",
+    "FL8",
+    "FL9",
+    "FL10",
+    "FL11",
+    "FL12",
+    "LED-B1",
+    "LED-B2",
+    "LED-B3",
+    "LED-B4",
+    "LED-B5",
+    "LED-BH1",
+    "LED-RGB1",
+    "LED-V1",
+    "LED-V2",
 )
 """The 26 colour-science lights used when the SFU illuminants are not available."""
 
@@ -86,7 +109,10 @@ def calibration_lights(data_dir=None) -> tuple[tuple[str, ...], np.ndarray, str]
         import colour
 
         values = np.stack(
-            [resample(colour.SDS_ILLUMINANTS[n].wavelengths, colour.SDS_ILLUMINANTS[n].values, kind="spectrum") for n in CIE_LIGHTS]
+            [
+                resample(colour.SDS_ILLUMINANTS[n].wavelengths, colour.SDS_ILLUMINANTS[n].values, kind="spectrum")
+                for n in CIE_LIGHTS
+            ]
         )
         return CIE_LIGHTS, values, "CIE (colour-science)"
     names = tuple(data.SFU_LAB_LIGHTS.values()) + SFU_OTHER_LIGHTS
@@ -152,7 +178,9 @@ def _camera_sensors(camera, data_dir) -> tuple[np.ndarray, str]:
         return np.asarray(Camera.from_name(camera, data_dir).sensors, dtype=np.float64), camera
     sensors = np.asarray(camera, dtype=np.float64)
     if sensors.shape != (N_WAVELENGTHS, 3):
-        raise ValueError(f"camera: expected a name, a Camera or a ({N_WAVELENGTHS}, 3) array, got shape {sensors.shape}")
+        raise ValueError(
+            f"camera: expected a name, a Camera or a ({N_WAVELENGTHS}, 3) array, got shape {sensors.shape}"
+        )
     return sensors, "custom"
 
 
@@ -200,7 +228,9 @@ def synthetic_calibration(
     noisy = unit + rng.standard_normal(unit.shape) * np.sqrt(noise_gain * unit + noise_floor)
     raw = invert_linearisation(FULL_SCALE * noisy, a0, a1, exp_rate, black)
     usable = np.all(raw < CLIP_LEVEL, axis=1)
-    truth = Linearisation(a0=(float(a0),) * 3, a1=(float(a1),) * 3, exp_rate=(float(exp_rate),) * 3, black=(float(black),) * 3)
+    truth = Linearisation(
+        a0=(float(a0),) * 3, a1=(float(a1),) * 3, exp_rate=(float(exp_rate),) * 3, black=(float(black),) * 3
+    )
     return SyntheticCalibration(
         spectra=spectra,
         raw=np.minimum(raw, CLIP_LEVEL),
@@ -232,13 +262,13 @@ def has_external_lights(data_dir=None) -> bool:
 
 __all__ = [
     "CIE_LIGHTS",
+    "DEFAULT_LINEARISATION",
+    "DEFAULT_NOISE_FLOOR",
+    "DEFAULT_NOISE_GAIN",
     "SFU_OTHER_LIGHTS",
     "SyntheticCalibration",
     "calibration_lights",
     "colorchecker",
-    "synthetic_calibration",
-    "DEFAULT_NOISE_GAIN",
-    "DEFAULT_NOISE_FLOOR",
-    "DEFAULT_LINEARISATION",
     "has_external_lights",
+    "synthetic_calibration",
 ]

@@ -202,15 +202,15 @@ def jiang_cameras(data_dir=None) -> dict[str, np.ndarray]:
 
 
 __all__ = [
+    "SFU_LAB_LIGHTS",
     "WAVELENGTHS",
     "DataNotFoundError",
     "find_data_file",
-    "sfu_reflectances",
-    "rawtoaces_cameras",
-    "sony_dxc930",
-    "sfu_illuminants",
-    "sfu321_groundtruth",
     "gehler_shi_groundtruth",
     "jiang_cameras",
-    "SFU_LAB_LIGHTS",
+    "rawtoaces_cameras",
+    "sfu321_groundtruth",
+    "sfu_illuminants",
+    "sfu_reflectances",
+    "sony_dxc930",
 ]

@@ -44,7 +44,7 @@ class Estimator(eqx.Module):
     estimates_brightness: ClassVar[bool] = False
     block_size: ClassVar[int | None] = None
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         raise NotImplementedError
 
 

@@ -133,7 +133,7 @@ def _grid(box: Float[Array, "4"], n: int) -> Float[Array, "3 G"]:
     return jnp.stack([r, g, 1.0 - r - g])
 
 
-def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K 3"]) -> Float[Array, "G"]:
+def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K 3"]) -> Float[Array, " G"]:
     """``max_k x_g . vectors_k`` for every ``g``, as unrolled multiply-adds and maxima.
 
     Inner products of length 3 are far faster as fused elementwise loops than as (batched) matrix
@@ -146,14 +146,14 @@ def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K 3"]) -> Float[
     return best
 
 
-def _argmax(x: Float[Array, "G"]) -> Array:
+def _argmax(x: Float[Array, " G"]) -> Array:
     """First index of the maximum; a max and a min reduction vectorise on CPU, where XLA's
     variadic (value, index) reduction of ``jnp.argmax`` does not."""
     index = jnp.arange(x.shape[0])
     return jnp.min(jnp.where(x == jnp.max(x), index, x.shape[0] - 1))
 
 
-def _cell_lower_bound(v: Float[Array, "G"], n: int) -> Float[Array, "G"]:
+def _cell_lower_bound(v: Float[Array, " G"], n: int) -> Float[Array, " G"]:
     """A first-order lower bound of the violation anywhere in each cell of an ``n x n`` grid.
 
     Thin feasible slivers can pass between grid centres; a cell may hold feasible directions when
@@ -174,7 +174,7 @@ def _cell_lower_bound(v: Float[Array, "G"], n: int) -> Float[Array, "G"]:
     return (grid - _LOCATE_SAFETY * 0.5 * (change(0) + change(1))).ravel()
 
 
-def _coverage(v: Float[Array, "G"], n: int) -> Float[Array, "G"]:
+def _coverage(v: Float[Array, " G"], n: int) -> Float[Array, " G"]:
     """Fraction of each cell of an ``n x n`` grid where the violation is ``<= 0``.
 
     The violation is taken as linear across the cell with the central-difference slopes
@@ -250,7 +250,7 @@ class CIP(Estimator):
     coarse: int = eqx.field(static=True, default=24)
     fine: int = eqx.field(static=True, default=48)
 
-    def violation(self, u: Float[Array, "3 G"], rgb: Float[Array, "P 3"], valid: Bool[Array, "P"]) -> Float[Array, "G"]:
+    def violation(self, u: Float[Array, "3 G"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]) -> Float[Array, " G"]:
         """Largest normalised violation (a sine) of the perspective and illumination constraints.
 
         ``<= 0`` exactly when ``u`` is feasible; a relaxation level ``eps`` accepts ``<= eps``.
@@ -285,7 +285,7 @@ class CIP(Estimator):
         illuminant = _max_of_dots(x, self.illuminant_facets)
         return jnp.where(inside, jnp.maximum(surface, illuminant), _OUTSIDE)
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         # The perspective constraints ignore each pixel's brightness. Pixels are not normalised
         # here (measured ~25 % slower on CPU); float32 squares of ``m * p`` stay finite for pixel
         # values between about 1e-15 and 1e15.
@@ -321,7 +321,7 @@ class CIP(Estimator):
         return Estimate(illuminant=estimate.illuminant, ok=estimate.ok & (level <= 0))
 
     @staticmethod
-    def _log_area(u: Float[Array, "3 G"]) -> Float[Array, "G"]:
+    def _log_area(u: Float[Array, "3 G"]) -> Float[Array, " G"]:
         # log(D1 D2) up to the constant log(k1 k2): 2 log b - log r - log g.
         safe = jnp.maximum(u, TINY)
         return 2.0 * jnp.log(safe[2]) - jnp.log(safe[0]) - jnp.log(safe[1])
@@ -430,7 +430,7 @@ def fit(
     else:
         illuminant_facets = cone_facets(white / train)
         allowed = _map_cone_rg(white, train)
-    as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)  # noqa: E731
+    as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)
     return CIP(
         white=as32(white),
         surface_facets=as32(cone_facets(canonical)),

@@ -82,7 +82,7 @@ def histogram_bins(rgb: Float[Array, "P 3"]) -> jax.Array:
     return cells[..., 0] * BINS + cells[..., 1]
 
 
-def binarised_histogram(rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Float[Array, "2500"]:
+def binarised_histogram(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, "2500"]:
     """The net's input: 1 for every (r,g) bin holding at least one valid chromaticity (§4.5.5).
 
     Arguments:
@@ -96,7 +96,7 @@ def binarised_histogram(rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Flo
     return jnp.zeros(N_INPUTS, rgb.dtype).at[histogram_bins(rgb)].max(valid.astype(rgb.dtype))
 
 
-def occupied_bins(rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> tuple[jax.Array, jax.Array]:
+def occupied_bins(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[jax.Array, jax.Array]:
     """The binarised histogram as a list: distinct occupied bins and a 0/1 weight per slot.
 
     ``sum_k weight_k * onehot(bin_k) == binarised_histogram(rgb, mask)``. The first layer then costs
@@ -130,11 +130,11 @@ class Mlp(eqx.Module):
         keys = jax.random.split(key, len(sizes) - 1)
         self.layers = tuple(eqx.nn.Linear(a, b, key=k) for a, b, k in zip(sizes[:-1], sizes[1:], keys))
 
-    def __call__(self, x: Float[Array, "n_in"]) -> Float[Array, "n_out"]:
+    def __call__(self, x: Float[Array, " n_in"]) -> Float[Array, " n_out"]:
         """The net on a dense input vector (e.g. :func:`binarised_histogram`)."""
         return self._hidden_to_output(self.layers[0](x))
 
-    def from_bins(self, bins: jax.Array, weight: Float[Array, "P"]) -> Float[Array, "n_out"]:
+    def from_bins(self, bins: jax.Array, weight: Float[Array, " P"]) -> Float[Array, " n_out"]:
         """The net on a sparse 0/1 input given by :func:`occupied_bins` (same value as ``__call__``)."""
         first = self.layers[0]
         return self._hidden_to_output(first.weight[:, bins] @ weight.astype(first.weight.dtype) + first.bias)
@@ -173,7 +173,7 @@ class NeuralNet(Estimator):
     fallback: Float[Array, "3"]
     estimates_brightness = False
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         has_data = jnp.any(mask & (jnp.sum(rgb, axis=-1) > TINY))
         predicted = self.net.from_bins(*occupied_bins(rgb, mask))
         rg, inside = _project_to_simplex(jnp.nan_to_num(predicted, nan=1.0 / 3.0))

@@ -4,11 +4,10 @@ labels with :func:`register`; :func:`fit` builds the model for a world."""
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass
-from typing import Callable
-
 import importlib
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
 
 from ccjax.estimators.base import Estimator
 from ccjax.world import World
@@ -87,4 +86,3 @@ def available() -> list[tuple[str, str]]:
     """``(example label, description)`` for every registered family."""
     _load_families()
     return [(entry.example, entry.description) for entry in _ENTRIES]
-

@@ -42,7 +42,7 @@ class GreyWorld(Estimator):
     fallback: Float[Array, "3"]
     estimates_brightness = True
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         weights = mask.astype(rgb.dtype)
         count = jnp.sum(weights)
         mean = pairwise_reduce(rgb * weights[:, None], jnp.add) / jnp.maximum(count, 1.0)
@@ -59,7 +59,7 @@ class ShadesOfGrey(Estimator):
     p: float = eqx.field(static=True)  # static: an integer p compiles to multiplications
     fallback: Float[Array, "3"]
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
         masked = jnp.where(mask[:, None], rgb, 0.0)
         # Normalise by the brightest value first so rho^p neither overflows nor underflows.
@@ -89,7 +89,7 @@ class MaxRGB(Estimator):
     temperature: float | None = None
     estimates_brightness = True
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
         if self.temperature is None:
             maximum = pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum)
@@ -139,19 +139,15 @@ def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
 # labels
 
 register(r"NOTHING", "NOTHING", "assume the canonical light (§4.5)")(lambda w, m, **o: fit_nothing(w, **o))
-register(r"AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)")(
-    lambda w, m, **o: fit_ave_illum(w, **o)
-)
+register(r"AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)")(lambda w, m, **o: fit_ave_illum(w, **o))
 register(r"GW", "GW", "grey world, 2 x mean RGB (§4.5.1)")(lambda w, m, **o: fit_gw(w, **o))
-register(r"DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)")(
-    lambda w, m, **o: fit_db_gw(w, **o)
-)
-register(r"RETINEX|MAX-RGB|max-rgb", "RETINEX", "per-channel maximum (§4.5.2)")(
-    lambda w, m, **o: fit_retinex(w, **o)
-)
+register(r"DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)")(lambda w, m, **o: fit_db_gw(w, **o))
+register(r"RETINEX|MAX-RGB|max-rgb", "RETINEX", "per-channel maximum (§4.5.2)")(lambda w, m, **o: fit_retinex(w, **o))
 register(
-    r"soft-RETINEX-t(?P<t>\d+(\.\d+)?(e-?\d+)?)", "soft-RETINEX-t0.01", "soft maximum with temperature t (differentiable)"
+    r"soft-RETINEX-t(?P<t>\d+(\.\d+)?(e-?\d+)?)",
+    "soft-RETINEX-t0.01",
+    "soft maximum with temperature t (differentiable)",
 )(lambda w, m, **o: fit_retinex(w, temperature=float(m["t"]), **o))
-register(r"shades-of-grey-p(?P<p>\d+(\.\d+)?)", "shades-of-grey-p6", "Minkowski p-norm grey world (Finlayson & Trezzi)")(
-    lambda w, m, **o: fit_shades_of_grey(w, p=float(m["p"]), **o)
-)
+register(
+    r"shades-of-grey-p(?P<p>\d+(\.\d+)?)", "shades-of-grey-p6", "Minkowski p-norm grey world (Finlayson & Trezzi)"
+)(lambda w, m, **o: fit_shades_of_grey(w, p=float(m["p"]), **o))

@@ -53,7 +53,12 @@ from ccjax.estimators.correlation.matrices import (
 )
 from ccjax.estimators.registry import register
 
-@register(r"(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE|MLM)", "C-by-C-MMSE", "Colour by Correlation in (r,g): MAP, MMSE, MLM (§4.5.4)")
+
+@register(
+    r"(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE|MLM)",
+    "C-by-C-MMSE",
+    "Colour by Correlation in (r,g): MAP, MMSE, MLM (§4.5.4)",
+)
 def _build_chromaticity(world, match, **options):
     if match["spec"]:
         options.setdefault("specular", True)

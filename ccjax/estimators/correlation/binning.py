@@ -15,7 +15,7 @@ RG_BINS = 50
 N_RG_CELLS = RG_BINS * (RG_BINS + 1) // 2  # bins (i, j) with i + j <= 49
 
 
-def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Bool[Array, "P"]:
+def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, " P"]:
     # A black pixel has no chromaticity: it carries no evidence about the light.
     return mask & (jnp.sum(rgb, axis=-1) > TINY)
 
@@ -43,7 +43,7 @@ def compact_rg_cells() -> np.ndarray:
     return cells
 
 
-def _unique_first(keys: Int[Array, "K"], valid: Bool[Array, "K"]) -> tuple[Int[Array, "K"], Bool[Array, "K"]]:
+def _unique_first(keys: Int[Array, " K"], valid: Bool[Array, " K"]) -> tuple[Int[Array, " K"], Bool[Array, " K"]]:
     """Sort ``keys`` (invalid entries last) and flag the first entry of each distinct valid key."""
     big = jnp.iinfo(keys.dtype).max
     ordered = jnp.sort(jnp.where(valid, keys, big))
@@ -51,7 +51,9 @@ def _unique_first(keys: Int[Array, "K"], valid: Bool[Array, "K"]) -> tuple[Int[A
     return ordered, first
 
 
-def presence_scores(log_probability: Float[Array, "C I"], rgb: Float[Array, "P 3"], valid: Bool[Array, "P"]) -> Float[Array, "I"]:
+def presence_scores(
+    log_probability: Float[Array, "C I"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]
+) -> Float[Array, " I"]:
     """``M x`` of §4.5.4: the sum of the matrix rows of the (r,g) bins present in the scene (each
     bin once, whatever the number of pixels in it)."""
     bins = rg_bins(rgb)
@@ -72,8 +74,8 @@ def soft_axis(x: Float[Array, "..."], softness: float) -> tuple[Int[Array, "... 
 
 
 def soft_presence_score(
-    log_probability: Float[Array, "C I"], cells: Int[Array, "K"], weights: Float[Array, "K"], merge: Bool[Array, "K"]
-) -> tuple[Float[Array, "I"], Float[Array, ""]]:
+    log_probability: Float[Array, "C I"], cells: Int[Array, " K"], weights: Float[Array, " K"], merge: Bool[Array, " K"]
+) -> tuple[Float[Array, " I"], Float[Array, ""]]:
     """Soft presence: a cell reached by entries with weights ``w_k`` is present with probability
     ``1 - prod(1 - w_k)`` (1 when some pixel sits squarely in it). Entries with ``merge`` False are
     never pooled (the 3-D outside cell stands for many distinct cells).
@@ -95,8 +97,8 @@ def soft_presence_score(
 
 
 def soft_presence_scores(
-    log_probability: Float[Array, "C I"], rgb: Float[Array, "P 3"], valid: Bool[Array, "P"], softness: float
-) -> Float[Array, "I"]:
+    log_probability: Float[Array, "C I"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"], softness: float
+) -> Float[Array, " I"]:
     """Differentiable :func:`presence_scores`: each pixel spreads over the 2 x 2 bins around it
     (:func:`soft_axis`), bins are present with probability ``1 - prod(1 - w)``."""
     total = jnp.sum(rgb, axis=-1, keepdims=True)

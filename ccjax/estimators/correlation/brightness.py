@@ -9,8 +9,21 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
-from ccjax.estimators.correlation.binning import RG_BINS, compact_rg_cells, rg_bins, soft_axis, soft_presence_score, valid_pixels
-from ccjax.estimators.correlation.fitting import DEFAULT_TEMPERATURE, cached, check_positive, illuminant_rg_of, resolve_specular
+from ccjax.estimators.correlation.binning import (
+    RG_BINS,
+    compact_rg_cells,
+    rg_bins,
+    soft_axis,
+    soft_presence_score,
+    valid_pixels,
+)
+from ccjax.estimators.correlation.fitting import (
+    DEFAULT_TEMPERATURE,
+    cached,
+    check_positive,
+    illuminant_rg_of,
+    resolve_specular,
+)
 from ccjax.estimators.correlation.matrices import BRIGHTNESS_SIGMA, brightness_matrix
 from ccjax.estimators.simple import average_illuminant
 from ccjax.metrics import rg_to_rgb
@@ -69,7 +82,7 @@ class ColourByCorrelation3D(Estimator):
             (key, brightness, rgb[:, 0], rgb[:, 1], rgb[:, 2], valid), num_keys=4
         )
         rg_cell = jnp.where(valid, key, -1)
-        same_as_previous = lambda x: x == jnp.concatenate([x[:1] * 0 - 1, x[:-1]])  # noqa: E731
+        same_as_previous = lambda x: x == jnp.concatenate([x[:1] * 0 - 1, x[:-1]])
         duplicate = same_as_previous(red) & same_as_previous(green) & same_as_previous(blue) & same_as_previous(key)
         distinct = valid & ~duplicate
 
@@ -120,19 +133,19 @@ class ColourByCorrelation3D(Estimator):
             level_scores = self._soft_level_scores(rgb, valid, brightness, initial)
         return valid, initial, relative, level_scores
 
-    def brightness_levels(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Float[Array, "Q"]:
+    def brightness_levels(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, " Q"]:
         """The hypothesised illuminant brightnesses ``b_q`` (R+G+B of white) for this scene."""
         _, _, initial, relative = self._prepare(rgb, mask)
         return initial * relative
 
-    def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Float[Array, "Q I"]:
+    def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, "Q I"]:
         """Normalised log-posterior over (brightness level, training illuminant), materialised
         (``__call__`` never holds it); uniform priors over illuminants and log-brightness."""
         _, _, relative, level_scores = self._scorer(rgb, mask)
         scores = jax.lax.map(level_scores, relative)
         return jax.nn.log_softmax(scores.reshape(-1)).reshape(scores.shape)
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         valid, initial, relative, level_scores = self._scorer(rgb, mask)
         hard_map = self.selector == "MAP" and self.softness is None
         inverse_t = 1.0 if self.selector == "MMSE" else 1.0 / self.temperature
@@ -156,7 +169,12 @@ class ColourByCorrelation3D(Estimator):
             decay = jnp.exp(peak - new_peak)
             weight = jnp.exp(score - new_peak)
             total = jnp.sum(weight)
-            carry = (new_peak, norm * decay + total, mean_rg * decay + weight @ self.illuminant_rg, mean_b * decay + total * ratio)
+            carry = (
+                new_peak,
+                norm * decay + total,
+                mean_rg * decay + weight @ self.illuminant_rg,
+                mean_b * decay + total * ratio,
+            )
             return carry, None
 
         dtype = self.illuminant_rg.dtype
@@ -226,7 +244,12 @@ def fit_brightness(
 
     def compute():
         matrix, l_total = brightness_matrix(
-            world, l_bins=l_bins, sigma=options["sigma"], sigma_l=options["sigma_l"], floor=options["floor"], specular=specular,
+            world,
+            l_bins=l_bins,
+            sigma=options["sigma"],
+            sigma_l=options["sigma_l"],
+            floor=options["floor"],
+            specular=specular,
             specular_steps=specular_steps,
         )
         return {"log_probability": matrix, "l_total": np.asarray(l_total)}

@@ -12,7 +12,13 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import Estimate, Estimator, with_fallback
 from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores, valid_pixels
-from ccjax.estimators.correlation.fitting import DEFAULT_TEMPERATURE, cached, check_positive, illuminant_rg_of, resolve_specular
+from ccjax.estimators.correlation.fitting import (
+    DEFAULT_TEMPERATURE,
+    cached,
+    check_positive,
+    illuminant_rg_of,
+    resolve_specular,
+)
 from ccjax.estimators.correlation.matrices import chromaticity_matrix, hull_matrix
 from ccjax.estimators.simple import average_illuminant
 from ccjax.metrics import rg_to_rgb
@@ -44,7 +50,7 @@ class ColourByCorrelation(Estimator):
     softness: float | None = eqx.field(static=True, default=None)
     temperature: float = eqx.field(static=True, default=1.0)
 
-    def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Float[Array, "I"]:
+    def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, " I"]:
         """Normalised log-posterior over the training illuminants (uniform prior)."""
         valid = valid_pixels(rgb, mask)
         if self.softness is None:
@@ -53,7 +59,7 @@ class ColourByCorrelation(Estimator):
             scores = soft_presence_scores(self.log_probability, rgb, valid, self.softness)
         return jax.nn.log_softmax(scores)
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         log_posterior = self.log_posterior(rgb, mask)
         posterior = jnp.exp(log_posterior)
         if self.selector == "MMSE":
@@ -77,7 +83,7 @@ class ColourByCorrelation01(Estimator):
     fallback: Float[Array, "3"]
     tolerance: float = eqx.field(static=True, default=1.0)
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         valid = valid_pixels(rgb, mask)
         counts = presence_scores(self.compatible, rgb, valid)
         chosen = counts >= jnp.max(counts) - self.tolerance
@@ -158,7 +164,14 @@ MLM_WIDTHS = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0)
 
 
 def tune_mlm_width(
-    world: World, model: ColourByCorrelation, *, widths=MLM_WIDTHS, n_scenes: int = 1000, n_surfaces: int = 8, seed: int = 1999, specular=None
+    world: World,
+    model: ColourByCorrelation,
+    *,
+    widths=MLM_WIDTHS,
+    n_scenes: int = 1000,
+    n_surfaces: int = 8,
+    seed: int = 1999,
+    specular=None,
 ) -> dict[str, np.ndarray]:
     """Choose the MLM mask width as the thesis did (§4.5.4): the one with the least mean absolute
     (r,g) error on a synthetic validation set (the §4.7 protocol: a test illuminant and

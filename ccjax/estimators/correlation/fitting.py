@@ -33,7 +33,13 @@ def _cache_dir() -> Path:
 
 def _world_digest(world: World) -> str:
     digest = hashlib.sha256()
-    for array in (world.reflectances, world.train_illuminants, world.test_illuminants, world.canonical, world.camera.sensors):
+    for array in (
+        world.reflectances,
+        world.train_illuminants,
+        world.test_illuminants,
+        world.canonical,
+        world.camera.sensors,
+    ):
         values = np.ascontiguousarray(np.asarray(array, np.float32))
         digest.update(str(values.shape).encode())
         digest.update(values.tobytes())

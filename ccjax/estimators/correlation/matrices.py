@@ -18,7 +18,9 @@ remedy 1 MAP/MMSE 0.0319/0.0264 (thesis 0.030/0.025), remedy 2 0.0252/0.0215 (0.
 (1, 1) they are 0.0404/0.0334 and 0.0316/0.0279; with (0.5, 0.5) 0.0304/0.0246 and 0.0254/0.0202."""
 
 
-def training_responses(world: World, specular: Specular | None = None, steps: int = 8) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def training_responses(
+    world: World, specular: Specular | None = None, steps: int = 8
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Camera RGB of every reflectance under every training illuminant, with frequency weights.
 
     Uniform statistics over surfaces and illuminants (§4.5.4, §10.2). With ``specular``, each
@@ -41,7 +43,10 @@ def training_responses(world: World, specular: Specular | None = None, steps: in
         shiny = rgb[:, :, None, :] + amounts[None, None, :, None] * whites[:, None, None, :]
         rgb = np.concatenate([rgb, shiny.reshape(rgb.shape[0], -1, 3)], axis=1)
         weights = np.concatenate(
-            [np.full(weights.size, 1.0 - specular.probability), np.full(weights.size * steps, specular.probability / steps)]
+            [
+                np.full(weights.size, 1.0 - specular.probability),
+                np.full(weights.size * steps, specular.probability / steps),
+            ]
         )
     return rgb, weights, whites
 
@@ -58,7 +63,9 @@ def _log_of_smoothed(counts: np.ndarray, sigma: tuple[float, ...], floor: float)
     return np.log(np.maximum(probability, lowest))
 
 
-def chromaticity_matrix(world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular: Specular | None = None) -> np.ndarray:
+def chromaticity_matrix(
+    world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular: Specular | None = None
+) -> np.ndarray:
     """The probabilistic 2-D correlation matrix (§4.5.4): per training illuminant, the frequency of
     the reflectances' (r,g) bins, smoothed with a Gaussian of ``sigma`` bins, as log-probabilities.
 

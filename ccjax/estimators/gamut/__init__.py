@@ -17,8 +17,8 @@ __all__ = [
     "GamutMapping",
     "GamutModel",
     "Grid",
-    "SoftGamutMapping",
     "GridOptions",
+    "SoftGamutMapping",
     "cone_planes",
     "estimate_all",
     "evaluate",
@@ -33,7 +33,6 @@ __all__ = [
 # labels (Table 4.1, Table 6.1; grammar of spec ch08-12 §0)
 
 from ccjax.estimators.registry import register as _register
-
 
 _SOFT_OPTIONS = ("tau", "kappa", "beta", "margin")
 

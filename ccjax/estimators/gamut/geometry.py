@@ -80,7 +80,9 @@ def gamut_facets(points: np.ndarray) -> Facets:
     )
 
 
-def nd_points(reflectances: np.ndarray, sensors: np.ndarray, illuminants: np.ndarray, canonical: np.ndarray) -> np.ndarray:
+def nd_points(
+    reflectances: np.ndarray, sensors: np.ndarray, illuminants: np.ndarray, canonical: np.ndarray
+) -> np.ndarray:
     """Points of the ND gamut (§6.1): each illuminant's database RGBs mapped white-to-white.
 
     Arguments:

@@ -96,7 +96,7 @@ class Observations(eqx.Module):
     scale: Float[Array, "P 3"]
     top: Float[Array, "P K1 3"]
 
-    def take(self, index) -> "Observations":
+    def take(self, index) -> Observations:
         return Observations(origin=self.origin[index], scale=self.scale[index], top=self.top[index])
 
 
@@ -115,11 +115,11 @@ class Grid(eqx.Module):
     """
 
     rg: Float[Array, "G 2"]
-    valid: Bool[Array, "G"]
-    inverse_extent: Float[Array, "G"]
-    surface: Float[Array, "G"]
-    illuminant: Float[Array, "G"]
-    cone: Float[Array, "G"]
+    valid: Bool[Array, " G"]
+    inverse_extent: Float[Array, " G"]
+    surface: Float[Array, " G"]
+    illuminant: Float[Array, " G"]
+    cone: Float[Array, " G"]
     observations: Observations
     step: Float[Array, "2"]
     exact: Bool[Array, ""]
@@ -149,7 +149,7 @@ def _dot_minor(xt: Float[Array, "3 G"], coef: Float[Array, "M 3"]) -> Float[Arra
     return coef[:, 0, None] * xt[None, 0] + coef[:, 1, None] * xt[None, 1] + coef[:, 2, None] * xt[None, 2]
 
 
-def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, "G"]:
+def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, " G"]:
     """``V_S``: the largest normalised origin-facet violation (<= -1 when nothing constrains)."""
     n_obs, k0, _ = obs.origin.shape
     scale = jnp.repeat(obs.scale, k0, axis=0)
@@ -157,13 +157,13 @@ def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array,
     return jnp.max(_dot(v, obs.origin.reshape(n_obs * k0, 3)) * jax.lax.rsqrt(norm2), axis=1)
 
 
-def inverse_extent(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, "G"]:
+def inverse_extent(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, " G"]:
     """``1/T``: the largest top-facet constraint along each ray (negative when none binds)."""
     n_obs, k1, _ = obs.top.shape
     return jnp.max(_dot(v, obs.top.reshape(n_obs * k1, 3)), axis=1)
 
 
-def cone_violation(x: Float[Array, "G 3"], planes: Float[Array, "L 3"]) -> Float[Array, "G"]:
+def cone_violation(x: Float[Array, "G 3"], planes: Float[Array, "L 3"]) -> Float[Array, " G"]:
     """``max_l n_l . x / |x|``: <= 0 inside the cone, else the sine of the angle outside it."""
     # Directions minor (L, G): a (G, 3) layout strides over the RGB axis for only L ~ 12 planes
     # (2.8x slower in isolation; about equal inside the full kernel), and a K=3 matmul is slower.
@@ -197,7 +197,7 @@ def relaxation_level(violation, options: GridOptions) -> tuple[Array, Array]:
 # observations
 
 
-def observations(model, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> tuple[Observations, Array, Array]:
+def observations(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[Observations, Array, Array]:
     """Constraint coefficients of a scene's observations; also ``q = p * w_C`` and usability."""
     dtype = rgb.dtype
     usable = mask & (jnp.sum(rgb, axis=-1) > 1e-12)
@@ -237,7 +237,9 @@ def _support_observations(model, obs: Observations, q, usable, lo, hi, options: 
     rg, _ = _square_grid(lo, hi, options.reduction_samples)
     _, v, valid = directions(rg)
     v = jnp.where(valid[:, None], v, 3.0)
-    origin_scores = jnp.einsum("pkc,sc->skp", obs.origin, v) / jnp.linalg.norm(q[None] * v[:, None], axis=-1)[:, None, :]
+    origin_scores = (
+        jnp.einsum("pkc,sc->skp", obs.origin, v) / jnp.linalg.norm(q[None] * v[:, None], axis=-1)[:, None, :]
+    )
     top_scores = jnp.einsum("pkc,sc->skp", obs.top, v)
     off = ~usable[None, None, :]
     winners = jnp.concatenate(
@@ -285,7 +287,11 @@ def locate(model, obs: Observations, q, usable, options: GridOptions):
     compiled body serves every iteration.
     """
     dtype = q.dtype
-    few = obs if q.shape[0] <= options.locate_observations else _chromaticity_extremes(obs, q, usable, options.locate_observations)
+    few = (
+        obs
+        if q.shape[0] <= options.locate_observations
+        else _chromaticity_extremes(obs, q, usable, options.locate_observations)
+    )
 
     def iteration(carry, _):
         lo, hi, best = carry
@@ -305,7 +311,7 @@ def locate(model, obs: Observations, q, usable, options: GridOptions):
     return lo, hi
 
 
-def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> Grid:
+def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     """Both stages for one scene: the fine grid every selector reads.
 
     Arguments:

@@ -46,7 +46,7 @@ class GamutModel(eqx.Module):
     white: Float[Array, "3"]
     origin_normals: Float[Array, "K0 3"]
     top_normals: Float[Array, "K1 3"]
-    top_offsets: Float[Array, "K1"]
+    top_offsets: Float[Array, " K1"]
     illuminant_planes: Float[Array, "L 3"]
     map_planes: Float[Array, "Lc 3"]
     domain: Float[Array, "2 2"]
@@ -62,7 +62,10 @@ def canonical_points(world: World, extension: str | None) -> np.ndarray:
     if extension is None:
         return np.asarray(world.canonical_rgb, np.float64)
     return geometry.nd_points(
-        np.asarray(world.reflectances), np.asarray(world.camera.sensors), np.asarray(world.train_illuminants), np.asarray(world.canonical)
+        np.asarray(world.reflectances),
+        np.asarray(world.camera.sensors),
+        np.asarray(world.train_illuminants),
+        np.asarray(world.canonical),
     )
 
 
@@ -105,7 +108,7 @@ def fit(
         domain = np.stack([np.maximum(lo, 0.0), np.minimum(hi, 1.0)])
     else:
         domain = np.array([[0.0, 0.0], [1.0, 1.0]])
-    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    f32 = lambda x: jnp.asarray(x, jnp.float32)
     return GamutModel(
         white=f32(white),
         origin_normals=f32(facets.origin_normals),
@@ -142,11 +145,13 @@ class GamutMapping(Estimator):
         if self.selector == "SCWIA" and not self.power > 0:
             raise ValueError(f"power: SCWIA's N must be positive, got {self.power!r}")
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> GamutEstimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> GamutEstimate:
         return select(self.model, evaluate(self.model, rgb, mask), self.selector, self.power)
 
 
-def estimate_all(model: GamutModel, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"], powers=(3, 6, 9, 12, 18, 24)) -> dict[str, GamutEstimate]:
+def estimate_all(
+    model: GamutModel, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"], powers=(3, 6, 9, 12, 18, 24)
+) -> dict[str, GamutEstimate]:
     """Every selector of a model from ONE evaluation of the direction grid.
 
     Returns:

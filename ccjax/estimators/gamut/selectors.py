@@ -113,7 +113,9 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> GamutEstima
     """
     white = model.white.astype(grid.rg.dtype)
     bounded = grid.valid & (grid.inverse_extent > 0)
-    violation = jnp.where(bounded, mask_violation(model.constraint, selector, grid.surface, grid.illuminant, grid.cone), _BIG)
+    violation = jnp.where(
+        bounded, mask_violation(model.constraint, selector, grid.surface, grid.illuminant, grid.cone), _BIG
+    )
     level, failed = relaxation_level(jnp.min(violation), model.options)
     feasible = violation <= level
     u, v, _ = directions(grid.rg)

@@ -37,7 +37,7 @@ from ccjax.estimators.gamut.model import GamutModel
 from ccjax.estimators.gamut.selectors import SELECTORS, GamutEstimate, mask_violation
 
 
-def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, "G"]:
+def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, " G"]:
     top = jax.lax.stop_gradient(jnp.max(values, axis=1, keepdims=True))
     return top[:, 0] + temperature * jnp.log(jnp.sum(jnp.exp((values - top) / temperature), axis=1))
 
@@ -72,7 +72,7 @@ class SoftGamutMapping(Estimator):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name}: expected a positive temperature parameter, got {getattr(self, name)!r}")
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, "P"]) -> GamutEstimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> GamutEstimate:
         model, options = self.model, self.model.options
         rgb = jnp.asarray(rgb)
         obs, q, usable = observations(model, rgb, mask)
@@ -113,7 +113,9 @@ class SoftGamutMapping(Estimator):
             centroid = 0.75 * jnp.sum((weight * jnp.exp(log_t))[:, None] * (white * v), axis=0)
             estimate = white / centroid
         else:
-            log_weight = self.power / 3.0 * (3.0 * log_t - log_u + jnp.sum(jnp.log(white))) - 1.5 * jnp.log(jnp.sum(u * u, axis=-1))
+            log_weight = self.power / 3.0 * (3.0 * log_t - log_u + jnp.sum(jnp.log(white))) - 1.5 * jnp.log(
+                jnp.sum(u * u, axis=-1)
+            )
             weight = jax.nn.softmax(log_weight + log_mask)
             estimate = jnp.sum(weight[:, None] * u, axis=0) * jnp.sum(weight * jnp.where(bounded, inverse, 0.0))
         found = jnp.any(usable) & ~failed
