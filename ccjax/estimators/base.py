@@ -3,35 +3,75 @@ estimates ONE scene, ``model(rgb (P, 3), mask (P,)) -> Estimate``; batching is `
 
 from __future__ import annotations
 
+import abc
+import enum
+import typing
 from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 TINY = 1e-12
 
 
+class Status(enum.IntEnum):
+    """Why an :class:`Estimate` is what it is (``Estimate.status``).
+
+    ``ESTIMATED`` is the only status with ``ok=True``. ``RELAXED``: gamut mapping found no feasible
+    illuminant and answered from the first relaxed constraint level that had one (thesis §4.3.2);
+    ``NO_DATA``: no usable pixel (all masked, all zero), the answer is the model's fallback light;
+    ``EMPTY_SET``: the method's feasible set stayed empty (every relaxation level), fallback light.
+    """
+
+    ESTIMATED = 0
+    RELAXED = 1
+    NO_DATA = 2
+    EMPTY_SET = 3
+
+
+@typing.final
 class Estimate(eqx.Module):
-    """An illuminant estimate.
+    """An illuminant estimate; every estimator returns this one type.
 
     Attributes:
         illuminant: ``(..., 3)`` camera RGB of a perfect white under the estimated light. Its
             magnitude is meaningful for 3-D methods and arbitrary for chromaticity methods.
-        ok: ``(...)`` False where the method fell back (no data, no feasible solution, ...).
+        ok: ``(...)`` True exactly where ``status == Status.ESTIMATED``.
+        status: ``(...)`` int32 :class:`Status` code saying why.
+        relaxation: ``(...)`` how far the method relaxed its constraints to find an answer (the
+            gamut methods' level ``eps``; 0 for methods without relaxation).
     """
 
     illuminant: Float[Array, "... 3"]
     ok: Bool[Array, "..."]
+    status: Int[Array, "..."]
+    relaxation: Float[Array, "..."]
+
+    def __init__(self, illuminant, ok=None, status=None, relaxation=None):
+        """Build from ``status`` (``ok`` follows from it) or, for methods that only know whether
+        they had data, from ``ok`` (``False`` means ``Status.NO_DATA``)."""
+        self.illuminant = illuminant
+        if status is None:
+            if ok is None:
+                raise ValueError("Estimate: give status or ok")
+            status = jnp.where(ok, Status.ESTIMATED, Status.NO_DATA)
+        self.status = jnp.asarray(status, jnp.int32)
+        self.ok = self.status == Status.ESTIMATED
+        if relaxation is None:
+            relaxation = jnp.zeros(self.status.shape, jnp.result_type(illuminant))
+        self.relaxation = jnp.asarray(relaxation)
 
 
-class Estimator(eqx.Module):
-    """Base class of fitted estimators.
+class AbstractEstimator(eqx.Module):
+    """A fitted estimator (DESIGN.md §2): configuration that changes the trace is static, what can
+    be learned is an array, so every model is a valid ``jax.jit`` / ``jax.vmap`` / ``jax.grad``
+    argument. Concrete estimators derive from :class:`AbstractSurfaceEstimator` or
+    :class:`AbstractImageEstimator` and are final.
 
     Class attributes:
-        label: the registry label it was built for.
         input_kind: ``"surfaces"`` (a list of RGBs with a mask) or ``"image"`` (``(H, W, 3)``).
         estimates_brightness: True for 3-D methods whose estimate magnitude is meaningful (the
             RGB and R+G+B errors and the RGB mapping error apply to them).
@@ -44,8 +84,46 @@ class Estimator(eqx.Module):
     estimates_brightness: ClassVar[bool] = False
     block_size: ClassVar[int | None] = None
 
+
+class AbstractSurfaceEstimator(AbstractEstimator):
+    """An estimator of ONE scene given as a list of surface RGBs: ``model(rgb (P, 3), mask (P,))``."""
+
+    input_kind: ClassVar[str] = "surfaces"
+
+    @abc.abstractmethod
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
-        raise NotImplementedError
+        """Estimate the light of one scene.
+
+        Arguments:
+            rgb: ``(P, 3)`` linear camera RGB, non-negative.
+            mask: ``(P,)`` True where a surface is valid.
+
+        Returns:
+            The :class:`Estimate`.
+        """
+
+
+class AbstractImageEstimator(AbstractEstimator):
+    """An estimator of ONE image: ``model(image (H, W, 3), mask (H, W))`` (spatial methods such as
+    grey edge, which need the pixels' neighbours)."""
+
+    input_kind: ClassVar[str] = "image"
+
+    @abc.abstractmethod
+    def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
+        """Estimate the light of one image.
+
+        Arguments:
+            image: ``(H, W, 3)`` linear camera RGB, non-negative.
+            mask: ``(H, W)`` True where a pixel is usable.
+
+        Returns:
+            The :class:`Estimate`.
+        """
+
+
+Estimator = AbstractEstimator
+"""Deprecated alias of :class:`AbstractEstimator` (kept for one release)."""
 
 
 def estimate_batch(model: Estimator, rgb: Float[Array, "B P 3"], mask: Bool[Array, "B P"]) -> Estimate:

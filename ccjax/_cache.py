@@ -1,0 +1,207 @@
+"""The one on-disk cache: one directory rule, one content key, one serialisation.
+
+Everything ccjax keeps between runs lives under :func:`cache_directory`: fitted arrays (``.npz`` +
+``.json``), fitted models (equinox leaf serialisation + ``.json`` metadata with a format version,
+so model files can be shared between users) and JAX's persistent compilation cache (``xla/``).
+Nothing is pickled: a cache file can be read without running code from it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+import equinox as eqx
+import jax
+import numpy as np
+
+FORMAT_VERSION = 1
+"""Version of the cache and model-file layout; a mismatch is rebuilt (cache) or refused (models)."""
+
+ModelT = TypeVar("ModelT", bound=eqx.Module)
+
+
+def cache_directory() -> Path:
+    """``$CCJAX_CACHE``, else the platform's user cache directory + ``ccjax``.
+
+    Returns:
+        The directory (not created).
+    """
+    if os.environ.get("CCJAX_CACHE"):
+        return Path(os.environ["CCJAX_CACHE"]).expanduser()
+    if sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA", Path.home() / "AppData" / "Local"))
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "ccjax"
+
+
+def enable_compilation_cache() -> None:
+    """Keep XLA's compiled programs in ``<cache>/xla`` (unless the user configured a cache), so a
+    second run of a command skips compilation as well as fitting."""
+    if not jax.config.jax_compilation_cache_dir:
+        jax.config.update("jax_compilation_cache_dir", str(cache_directory() / "xla"))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+
+
+def _update(digest: Any, part: Any) -> None:
+    """Feed one key part to ``digest``: arrays by dtype, shape and bytes; PyTrees (worlds, cameras,
+    models) by their static structure and leaves; everything else by its JSON text."""
+    if isinstance(part, (np.ndarray, jax.Array)) or (np.isscalar(part) and isinstance(part, np.generic)):
+        array = np.ascontiguousarray(np.asarray(part))
+        digest.update(f"array{array.dtype}{array.shape}".encode())
+        digest.update(array.tobytes())
+    elif isinstance(part, eqx.Module):
+        leaves, static = eqx.partition(part, eqx.is_array)
+        digest.update(repr(jax.tree_util.tree_structure(leaves)).encode())
+        digest.update(repr(jax.tree_util.tree_leaves(static)).encode())
+        for leaf in jax.tree_util.tree_leaves(leaves):
+            _update(digest, leaf)
+    elif isinstance(part, Mapping):
+        digest.update(b"{")
+        for name in sorted(part, key=str):
+            digest.update(str(name).encode())
+            _update(digest, part[name])
+        digest.update(b"}")
+    elif isinstance(part, (list, tuple)):
+        digest.update(b"[")
+        for item in part:
+            _update(digest, item)
+        digest.update(b"]")
+    else:
+        digest.update(json.dumps(part, sort_keys=True, default=str).encode())
+
+
+def content_key(kind: str, *parts: Any) -> str:
+    """The cache key of ``kind`` built from ``parts`` (arrays, PyTrees, options, strings).
+
+    Arguments:
+        kind: what is cached (``"correlation-2d"``, ``"world"``, ``"neural"``, ...).
+        *parts: everything the cached value depends on.
+
+    Returns:
+        A 24-character hex digest, stable across runs and machines.
+    """
+    digest = hashlib.sha256(f"ccjax-cache v{FORMAT_VERSION} {kind}".encode())
+    for part in parts:
+        _update(digest, part)
+    return digest.hexdigest()[:24]
+
+
+def atomic_write(path: Path, blob: bytes) -> None:
+    """Write ``blob`` to ``path`` through a temporary file in the same folder and ``os.replace``, so
+    readers never see a partial file; the file gets the usual permissions (umask)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(descriptor, "wb") as handle:
+            handle.write(blob)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)  # mkstemp's 0600 is for the temporary name only
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def cached_arrays(
+    kind: str, key: str, compute: Callable[[], Mapping[str, np.ndarray]], metadata: Mapping[str, Any] | None = None
+) -> dict[str, np.ndarray]:
+    """Load the arrays stored under (``kind``, ``key``), else ``compute()`` and store them.
+
+    A damaged or unreadable entry is recomputed and replaced; an unwritable cache only costs time.
+
+    Arguments:
+        kind: sub-folder of the cache (one per kind of fitted data).
+        key: :func:`content_key` of everything the arrays depend on.
+        compute: builds the arrays (called only on a miss).
+        metadata: JSON-able facts written beside the arrays (for people reading the cache).
+
+    Returns:
+        The arrays by name.
+    """
+    path = cache_directory() / kind / f"{key}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as stored:
+                return {name: stored[name] for name in stored.files}
+        except (OSError, ValueError, EOFError):
+            pass
+    arrays = {name: np.asarray(value) for name, value in compute().items()}
+    try:
+        import io
+
+        buffer = io.BytesIO()
+        np.savez(buffer, **arrays)  # pyright: ignore[reportArgumentType]
+        atomic_write(path, buffer.getvalue())
+        record = {"format": FORMAT_VERSION, "kind": kind, **(metadata or {})}
+        atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode())
+    except OSError:
+        pass
+    return arrays
+
+
+def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any]) -> Path:
+    """Write ``model``'s array leaves (``eqx.tree_serialise_leaves``) to ``path`` and a JSON record
+    (``format``, ccjax version, ``metadata``) beside it (``path.with_suffix(".json")``), atomically.
+
+    Arguments:
+        path: the model file (``.eqx``).
+        model: any fitted model.
+        metadata: what is needed to rebuild the model's skeleton (label, options, world, ...).
+
+    Returns:
+        ``path``.
+    """
+    import io
+
+    from ccjax import __version__
+
+    path = Path(path)
+    buffer = io.BytesIO()
+    eqx.tree_serialise_leaves(buffer, model)
+    atomic_write(path, buffer.getvalue())
+    record = {"format": FORMAT_VERSION, "ccjax": __version__, **metadata}
+    atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode())
+    return path
+
+
+def read_model_metadata(path: Path) -> dict[str, Any]:
+    """The JSON record of a model file; ``ValueError`` when it is missing, unreadable or of another
+    format version."""
+    record_path = Path(path).with_suffix(".json")
+    try:
+        record = json.loads(record_path.read_text())
+    except (OSError, ValueError) as error:
+        raise ValueError(f"model: cannot read the metadata {record_path}: {error}") from None
+    if record.get("format") != FORMAT_VERSION:
+        raise ValueError(f"model: {path} has format {record.get('format')!r}; this ccjax reads format {FORMAT_VERSION}")
+    return record
+
+
+def load_model(path: Path, like: ModelT) -> ModelT:
+    """Read a model written by :func:`save_model` into the skeleton ``like`` (same structure and
+    shapes, e.g. a freshly fitted or initialised model).
+
+    Arguments:
+        path: the model file.
+        like: a model of the same type, structure and leaf shapes.
+
+    Returns:
+        ``like`` with the stored leaves.
+    """
+    read_model_metadata(path)
+    try:
+        return eqx.tree_deserialise_leaves(path, like)
+    except (OSError, ValueError, RuntimeError) as error:
+        raise ValueError(f"model: {path} does not fit a {type(like).__name__}: {error}") from None

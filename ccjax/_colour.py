@@ -1,0 +1,70 @@
+"""(r,g) chromaticity, its inverse and (r,g) binning: the one implementation of each.
+
+``r = R / (R+G+B)``, ``g = G / (R+G+B)`` (Barnard 1999 §1.2); a pixel whose sum is not positive
+has no chromaticity and maps to the achromatic point (1/3, 1/3), never to NaN.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+TINY = 1e-12
+"""Sums at or below this have no chromaticity."""
+
+
+def rg(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
+    """(r,g) chromaticity of RGB (traceable; ``(1/3, 1/3)`` where ``R+G+B <= TINY``).
+
+    Arguments:
+        rgb: ``(..., 3)`` non-negative RGB.
+
+    Returns:
+        ``(..., 2)`` chromaticities.
+    """
+    total = jnp.sum(rgb, axis=-1, keepdims=True)
+    valid = total > TINY
+    return jnp.where(valid, rgb[..., :2] / jnp.where(valid, total, 1.0), 1.0 / 3.0)
+
+
+def rg_to_rgb(chromaticity: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
+    """The RGB of unit sum with chromaticity ``(r, g)``: ``(r, g, 1 - r - g)``.
+
+    Arguments:
+        chromaticity: ``(..., 2)``.
+
+    Returns:
+        ``(..., 3)``.
+    """
+    return jnp.concatenate([chromaticity, 1.0 - jnp.sum(chromaticity, axis=-1, keepdims=True)], axis=-1)
+
+
+def rg_numpy(rgb: np.ndarray) -> np.ndarray:
+    """:func:`rg` in NumPy at the input's precision (for fit-time code that runs outside JAX).
+
+    Arguments:
+        rgb: ``(..., 3)`` non-negative RGB.
+
+    Returns:
+        ``(..., 2)`` chromaticities, ``(1/3, 1/3)`` where the sum is not positive.
+    """
+    rgb = np.asarray(rgb)
+    total = rgb.sum(axis=-1, keepdims=True)
+    valid = total > TINY
+    return np.where(valid, rgb[..., :2] / np.where(valid, total, 1.0), 1.0 / 3.0)
+
+
+def rg_bin(chromaticity: Float[Array, "... 2"], n_bins: int) -> Int[Array, "... 2"]:
+    """The (r,g) cell of each chromaticity on an ``n_bins`` x ``n_bins`` grid over ``[0, 1]^2``.
+
+    Cell ``i`` covers ``[i / n_bins, (i + 1) / n_bins)``; 1.0 falls in the last cell.
+
+    Arguments:
+        chromaticity: ``(..., 2)``.
+        n_bins: cells per axis.
+
+    Returns:
+        ``(..., 2)`` integer cell indices in ``[0, n_bins - 1]``.
+    """
+    return jnp.clip(jnp.floor(chromaticity * n_bins).astype(jnp.int32), 0, n_bins - 1)
