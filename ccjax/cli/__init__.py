@@ -1,0 +1,55 @@
+"""The ``ccjax`` command line: parse, call the library, format.
+
+One module per command group; each declares ``add_<command>(subparsers)`` (its arguments) and
+``run_<command>(args)`` and lists its ``add_`` functions in ``COMMANDS``. :func:`main` (the
+``ccjax`` entry point) shows the groups in the order of :data:`GROUPS`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ccjax.cli import (
+    calibrate,
+    catalogue,
+    indexing,
+    photos,
+    sharpen,
+    synthetic,
+    training,
+)
+from ccjax.experiments.sweeps import weights_ready
+
+GROUPS = (synthetic, catalogue, photos, indexing, training, sharpen, calibrate)
+"""The command groups, in ``ccjax --help`` order."""
+
+COMMANDS = [add for group in GROUPS for add in group.COMMANDS]
+
+# Deprecated private alias (one release): tests/test_neural.py calls ``cli._weights_ready``.
+_weights_ready = weights_ready
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``ccjax`` argument parser with every sub-command."""
+    parser = argparse.ArgumentParser(
+        prog="ccjax",
+        description="JAX colour constancy: estimate and correct the colour of the light.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in COMMANDS:
+        add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``ccjax`` with ``argv`` (default: the process arguments); returns the exit code."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError) as error:
+        print(f"ccjax {args.command}: error: {error}", file=sys.stderr)
+        return 2
+
+
+__all__ = ["COMMANDS", "GROUPS", "build_parser", "main"]

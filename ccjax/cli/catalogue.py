@@ -1,0 +1,107 @@
+"""``ccjax world``, ``ccjax cameras`` and ``ccjax methods``: what ccjax can build."""
+
+from __future__ import annotations
+
+import sys
+
+from ccjax.cli.common import build_world, world_arguments
+
+
+def add_world(sub) -> None:
+    p = sub.add_parser("world", help="describe a synthetic world and plot its chromaticities")
+    world_arguments(p)
+    p.add_argument(
+        "--plot",
+        default=None,
+        help="write a PNG of the illuminant sets and reflectances in (r,g) (thesis Fig. 4.1)",
+    )
+    p.set_defaults(func=run_world)
+
+
+def run_world(args) -> int:
+    import numpy as np
+
+    from ccjax import experiments
+
+    world = build_world(args)
+    print(f"world: {world.name}")
+    for name, size in world.sizes().items():
+        print(f"  {name:<22}{size}")
+    print(f"  camera                {world.camera.name}")
+    print(f"  canonical white RGB   {np.round(np.asarray(world.canonical_white), 4).tolist()}")
+    if args.world == "barnard1999":
+        check = experiments.sfu321_check(world, args.data_dir)
+        print("  perfect white under each lab light vs mean SFU-321 ground truth (degrees):")
+        for row in check.rows:
+            print(f"    {row['light']:<18}{row['angular']:6.2f}   ({row['images']} images)")
+    if args.plot:
+        experiments.plot_world(world, args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    return 0
+
+
+def add_cameras(sub) -> None:
+    p = sub.add_parser("cameras", help="list the cameras ccjax can build")
+    p.add_argument(
+        "--data-dir",
+        default=None,
+        help="external data directory (else $CCJAX_DATA, else ../shared/data)",
+    )
+    p.set_defaults(func=run_cameras)
+
+
+def run_cameras(args) -> int:
+    from ccjax import experiments
+
+    print(experiments.camera_listing(args.data_dir).text())
+    return 0
+
+
+def method_catalogue():
+    """A :class:`ccjax.experiments.Report` of every registered family: grammar, example, input
+    kind, whether the fit is traceable, description."""
+    from ccjax.estimators import registry
+    from ccjax.experiments import Column, Report
+
+    rows = []
+    for example, description in registry.available():
+        entry, _ = registry.lookup(example)
+        traceable = getattr(entry, "traceable_fit", None)
+        rows.append(
+            {
+                "grammar": getattr(entry, "grammar", None) or entry.pattern.pattern,
+                "example": example,
+                "input_kind": getattr(entry, "input_kind", None),
+                "traceable_fit": None if traceable is None else ("yes" if traceable else "no"),
+                "description": description,
+            }
+        )
+    columns = [
+        Column("grammar", "label grammar"),
+        Column("example", gap=2),
+        Column("input_kind", "input", gap=2, missing="?"),
+        Column("traceable_fit", "traceable fit", gap=2, missing="?"),
+        Column("description", gap=2),
+    ]
+    return Report(rows, columns)
+
+
+def add_methods(sub) -> None:
+    p = sub.add_parser(
+        "methods",
+        help="list the estimator families and their labels",
+        description="Every registered estimator family: the grammar of its labels, an example label, its input "
+        "(surface lists or images), whether its fit can be traced by JAX (jit/grad through the fit), and a "
+        "description.",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=run_methods)
+
+
+def run_methods(args) -> int:
+    catalogue = method_catalogue()
+    print(catalogue.to_json() if args.json else catalogue.text())
+    return 0
+
+
+COMMANDS = [add_world, add_cameras, add_methods]

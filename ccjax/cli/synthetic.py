@@ -1,0 +1,162 @@
+"""``ccjax compare`` and ``ccjax reproduce``: synthetic sweeps and the thesis tables (Barnard 1999 ch. 4-10)."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from ccjax.cli.common import (
+    build_world,
+    int_list,
+    label_list,
+    world_arguments,
+    write_outputs,
+)
+
+DEFAULT_COMPARE_METHODS = [
+    "NOTHING",
+    "AVE-ILLUM",
+    "GW",
+    "DB-GW",
+    "RETINEX",
+    "shades-of-grey-p6",
+    "ECRULE-MV",
+    "ECRULE-SCWIA-12",
+    "C-by-C-MMSE",
+    "RGB-C-by-C-MMSE",
+    "NEURAL-NET",
+]
+"""The comparison set of ``ccjax compare`` (those registered and, if learned, trained)."""
+
+SUMMARIES = ("rms", "mean", "median", "trimean", "best25", "worst25", "max")
+
+
+def add_compare(sub) -> None:
+    p = sub.add_parser(
+        "compare",
+        help="run a synthetic comparison sweep (the main job)",
+        description="Run every method on the same synthetic scenes for each number of surfaces; "
+        "print RMS (r,g) and angular errors.",
+    )
+    world_arguments(p)
+    p.add_argument(
+        "--methods",
+        type=label_list,
+        default=None,
+        help="comma-separated labels (default: the built-in comparison set)",
+    )
+    p.add_argument(
+        "--surfaces",
+        type=int_list,
+        default=[4, 8, 16, 32, 64],
+        help="comma-separated surface counts (default: 4,8,16,32,64)",
+    )
+    p.add_argument(
+        "--scenes",
+        type=int,
+        default=1000,
+        help="scenes per surface count (default: %(default)s)",
+    )
+    p.add_argument(
+        "--specular",
+        action="store_true",
+        help="add the thesis' specularities (25 %% of surfaces, +U(0,2) x white)",
+    )
+    p.add_argument(
+        "--clip",
+        type=float,
+        default=None,
+        help="discard surfaces with a channel above this level, thesis units (white = 255)",
+    )
+    p.add_argument("--plot", default=None, help="write a PNG of error versus number of surfaces")
+    p.add_argument("--json", default=None, help="write the tidy table as JSON ('-' for stdout)")
+    p.add_argument("--csv", default=None, help="write the tidy table as CSV ('-' for stdout)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.set_defaults(func=run_compare)
+
+
+def run_compare(args) -> int:
+    import jax
+
+    from ccjax import experiments
+
+    start = time.perf_counter()
+    world = build_world(args)
+    methods = args.methods or experiments.runnable_methods(DEFAULT_COMPARE_METHODS, world)
+    result = experiments.sweep(
+        world,
+        methods,
+        args.surfaces,
+        args.scenes,
+        jax.random.key(args.seed),
+        specular=args.specular or None,
+        clip=None if args.clip is None else args.clip / 255.0,
+        progress=not args.no_progress,
+    )
+    print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes")
+    print(result.table("rg"))
+    print()
+    print(result.table("angular"))
+    if args.plot:
+        experiments.plot(result, args.plot, title=f"{world.name}: {args.scenes} scenes per point")
+        print(f"wrote {args.plot}", file=sys.stderr)
+    if args.json or args.csv:
+        write_outputs(args, result.report(SUMMARIES))
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    return 0
+
+
+def add_reproduce(sub) -> None:
+    p = sub.add_parser(
+        "reproduce",
+        help="reproduce a thesis table on the thesis world",
+        description="Run a table of Barnard (1999) with the thesis protocol on World.barnard1999 and print ours, "
+        "the thesis value and the relative difference per cell.",
+    )
+    p.add_argument("table", help="table id, e.g. 4.2, 4.3, 4.4, 5.1, 6.1, 10.1, 10.2")
+    p.add_argument(
+        "--methods",
+        type=label_list,
+        default=None,
+        help="comma-separated labels (default: every registered row)",
+    )
+    p.add_argument(
+        "--scenes",
+        type=int,
+        default=1000,
+        help="scenes per condition (default: %(default)s)",
+    )
+    p.add_argument(
+        "--data-dir",
+        default=None,
+        help="external data directory (else $CCJAX_DATA, else ../shared/data)",
+    )
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=run_reproduce)
+
+
+def run_reproduce(args) -> int:
+    import jax
+
+    from ccjax import experiments, thesis
+    from ccjax.world import World
+
+    world = World.barnard1999(args.data_dir, seed=args.seed)
+    key = jax.random.key(args.seed)
+    if args.table == "5.1":
+        # Table 5.1 has its own protocol (sharpening variants, whole-database mapping error).
+        from ccjax import sharpening
+
+        result = sharpening.reproduce_5_1(world, args.methods, args.scenes, key, progress=not args.no_progress)
+    else:
+        methods = args.methods
+        if methods is None and args.table in thesis.TABLES:
+            methods = experiments.runnable_methods(list(thesis.TABLES[args.table]), world)
+        result = experiments.reproduce(args.table, world, methods, args.scenes, key, progress=not args.no_progress)
+    print(result.to_json() if args.json else result.text())
+    return 0
+
+
+COMMANDS = [add_compare, add_reproduce]

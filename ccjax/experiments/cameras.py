@@ -1,0 +1,126 @@
+"""Camera experiments: the camera list, the thesis camera against SFU-321, and the sharpness study.
+
+The computations behind ``ccjax cameras``, ``ccjax world --world barnard1999`` (the camera check)
+and ``ccjax sharpen --rank-cameras``; the command line only formats what these return.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import jax
+import numpy as np
+
+from ccjax.experiments.reports import Column, Report
+from ccjax.experiments.sweeps import is_registered
+from ccjax.world import World
+
+if TYPE_CHECKING:
+    from ccjax.sharpening import NewSharpening
+
+STUDY_METHODS = ("GW", "DB-GW", "RETINEX", "ECRULE-ICA", "ECRULE-MV")
+"""Estimators compared with and without the new sharpening in :func:`sharpening_study`."""
+
+
+def camera_listing(data_dir=None) -> Report:
+    """Every camera ccjax can build and where its curves come from.
+
+    Arguments:
+        data_dir: external data directory (external cameras are listed when it is found).
+
+    Returns:
+        A :class:`Report` with rows ``{"camera", "source"}``.
+    """
+    from ccjax.camera import cameras
+
+    rows = [{"camera": name, "source": source} for name, source in cameras(data_dir).items()]
+    return Report(rows, [Column("camera"), Column("source", gap=2)])
+
+
+def sfu321_check(world: World, data_dir=None) -> Report:
+    """The camera of ``world`` against the SFU-321 ground truth (Barnard 1999 §4.4).
+
+    For each of the 11 lab lights: the angle between the camera's response to a perfect white
+    under that light and the mean ground-truth RGB of the images taken under it.
+
+    Arguments:
+        world: a world with the Sony DXC-930 camera (:meth:`World.barnard1999`).
+        data_dir: external data directory.
+
+    Returns:
+        A :class:`Report` with rows ``{"light", "angular", "images"}`` (degrees).
+    """
+    from ccjax import data
+    from ccjax.metrics import angular_error
+
+    truth = data.sfu321_groundtruth(data_dir)
+    lights = data.sfu_illuminants(data_dir)
+    rows = []
+    for code, name in data.SFU_LAB_LIGHTS.items():
+        images = [i for i, label in enumerate(truth.labels) if label == code]
+        mean_truth = truth.rgb[images].mean(axis=0)
+        white = np.asarray(world.camera.response(lights.values[lights.names.index(name)]))
+        rows.append({"light": code, "angular": float(angular_error(white, mean_truth)), "images": len(images)})
+    columns = [Column("light"), Column("angular", spec=".2f", align=">", gap=2), Column("images", align=">", gap=2)]
+    return Report(rows, columns)
+
+
+@dataclass
+class SharpeningStudy:
+    """Cameras ranked by sharpness and the new sharpening of the least sharp one.
+
+    Attributes:
+        ranking: ``[{"camera", "source", "ratio", "best_linear", "best_diagonal"}]``, least sharp first.
+        camera: the least sharp camera.
+        sharpening: its :class:`ccjax.sharpening.NewSharpening` result.
+        n_scenes: test scenes per comparison.
+        comparisons: one row per estimator: ``{"method", "none", "new"}`` with the
+            ``evaluate_transforms`` results (``None`` for estimators not registered yet).
+    """
+
+    ranking: list[dict]
+    camera: str
+    sharpening: NewSharpening
+    n_scenes: int
+    comparisons: list[dict]
+
+
+def sharpening_study(
+    data_dir=None,
+    *,
+    seed: int = 0,
+    lambda_p: float | None = None,
+    n_scenes: int = 1000,
+    methods: Sequence[str] = STUDY_METHODS,
+) -> SharpeningStudy:
+    """Rank every available camera by sharpness (Barnard 1999 §5.7), sharpen the least sharp one
+    with the new method (§5.6) and compare estimators with and without it.
+
+    Arguments:
+        data_dir: external data directory (more cameras when it is found).
+        seed: seed of the default world's illuminant sets and of the test scenes.
+        lambda_p: positivity weight of the new method (default: its own search).
+        n_scenes: test scenes of 8 surfaces under the test lights.
+        methods: estimators compared.
+
+    Returns:
+        A :class:`SharpeningStudy`.
+    """
+    from ccjax import sharpening
+    from ccjax.camera import Camera
+
+    ranking = sharpening.rank_cameras(data_dir)
+    least = ranking[0]["camera"]
+    world = World.default(Camera.from_name(least, data_dir), seed=seed)
+    new = sharpening.new_sharpening(world, lambda_p=lambda_p)
+    transforms = {"none": np.eye(3), "new": new.transform}
+    comparisons = []
+    for label in methods:
+        if not is_registered(label):
+            comparisons.append({"method": label, "none": None, "new": None})
+            continue
+        out = sharpening.evaluate_transforms(world, label, transforms, n_scenes, key=jax.random.key(seed))
+        comparisons.append({"method": label, "none": out["none"], "new": out["new"]})
+    return SharpeningStudy(ranking, least, new, n_scenes, comparisons)

@@ -1,0 +1,300 @@
+"""Sweeps over synthetic scenes: chunked, optionally sharded, every method on the same scenes.
+
+The protocol is the thesis' (Barnard 1999 §4.7): for each number of surfaces, ``n_scenes`` scenes
+under test illuminants, every method run on the same scenes, errors aggregated per scene and then
+summarised (RMS is the thesis' aggregate). Scenes come from per-scene keys, so a sweep's numbers do
+not depend on its chunk size or on how the scene axis is sharded over devices.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import equinox as eqx
+import jax
+import numpy as np
+from tqdm.auto import tqdm
+
+from ccjax import metrics
+from ccjax.estimators import registry
+from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
+from ccjax.experiments.reports import Column, Report
+from ccjax.scenes import SceneTables, resolve_options, sample_batch, scene_keys
+from ccjax.world import World
+
+STATISTICS = ("angular", "rg", "rgb", "brightness", "map_rg", "map_rgb")
+"""Per-scene error measures (Barnard 1999 §4.2): angle (degrees), (r,g) distance, RGB distance,
+signed R+G+B difference, scene mapping RMS (r,g) and RGB errors; RGB-valued ones on the unit scale."""
+
+BRIGHTNESS_STATISTICS = ("rgb", "brightness", "map_rgb")
+"""Statistics that apply only to methods estimating the light's brightness (3-D methods)."""
+
+RGB_VALUED = ("rgb", "brightness", "map_rgb")
+"""Statistics on the RGB scale (multiplied by the thesis' white = 255 when compared with it)."""
+
+# Scenes x surfaces per chunk: about 4M surfaces keeps a chunk's arrays near 100 MB.
+_SURFACES_PER_CHUNK = 1 << 22
+
+
+def scene_errors(model: AbstractEstimator, scenes, canonical_white) -> dict[str, jax.Array]:
+    """Per-scene errors of one model on a scene batch (Barnard 1999 §4.2), plus ``ok``.
+
+    Arguments:
+        model: a surface estimator.
+        scenes: a :class:`ccjax.scenes.Scenes` batch.
+        canonical_white: the canonical light's camera RGB.
+
+    Returns:
+        :data:`STATISTICS` names -> ``(B,)`` errors, and ``"ok"``.
+    """
+    estimate = estimate_batch(model, scenes.rgb, scenes.mask)
+    e, truth = estimate.illuminant, scenes.illuminant
+    map_rg, map_rgb = metrics.mapping_errors(e, scenes.rgb, scenes.mask, scenes.canonical_rgb, canonical_white)
+    return {
+        "angular": metrics.angular_error(e, truth),
+        "rg": metrics.rg_error(e, truth),
+        "rgb": metrics.rgb_error(e, truth),
+        "brightness": metrics.brightness_error(e, truth),
+        "map_rg": map_rg,
+        "map_rgb": map_rgb,
+        "ok": estimate.ok,
+    }
+
+
+@eqx.filter_jit
+def _chunk(models, tables, keys, n_surfaces, specular, noise, clip):
+    scenes = sample_batch(keys, tables, n_surfaces, specular, noise, clip)
+    return [scene_errors(model, scenes, tables.canonical_white) for model in models]
+
+
+@dataclass
+class SweepResult:
+    """Per-scene errors of a sweep and their summaries.
+
+    Attributes:
+        methods: labels in order.
+        surfaces: numbers of surfaces in order.
+        n_scenes: scenes per number of surfaces.
+        errors: ``errors[method][surfaces][statistic] -> (n_scenes,)`` NumPy arrays (unit scale),
+            with ``"ok"`` booleans; statistics that do not apply to a method are absent.
+    """
+
+    methods: list[str]
+    surfaces: list[int]
+    n_scenes: int
+    errors: dict = field(default_factory=dict)
+
+    def value(self, method: str, surfaces: int, statistic: str, summary: str = "rms") -> float:
+        return metrics.summarise(self.errors[method][surfaces][statistic], summary)
+
+    def ok_fraction(self, method: str, surfaces: int) -> float:
+        return float(np.mean(self.errors[method][surfaces]["ok"]))
+
+    def rows(self, summaries: Sequence[str] = ("rms",)) -> list[dict]:
+        """The tidy table: one row per method, surfaces, statistic and summary."""
+        out = []
+        for method in self.methods:
+            for n in self.surfaces:
+                per_scene = self.errors[method][n]
+                for statistic in STATISTICS:
+                    if statistic not in per_scene:
+                        continue
+                    for summary in summaries:
+                        out.append(
+                            {
+                                "method": method,
+                                "surfaces": n,
+                                "statistic": statistic,
+                                "summary": summary,
+                                "value": metrics.summarise(per_scene[statistic], summary),
+                                "ok_fraction": self.ok_fraction(method, n),
+                                "n_scenes": self.n_scenes,
+                            }
+                        )
+        return out
+
+    def report(self, summaries: Sequence[str] = ("rms",)) -> Report:
+        """The tidy rows as a :class:`Report` (text, CSV, JSON)."""
+        columns = [
+            Column("method"),
+            Column("surfaces", align=">", gap=2),
+            Column("statistic", gap=2),
+            Column("summary", gap=2),
+            Column("value", spec=".6g", align=">", gap=2),
+            Column("ok_fraction", "ok", spec=".1%", align=">", gap=2),
+        ]
+        return Report(self.rows(summaries), columns, metadata={"n_scenes": self.n_scenes})
+
+    def to_csv(self, summaries: Sequence[str] = ("rms",)) -> str:
+        return self.report(summaries).to_csv()
+
+    def to_json(self, summaries: Sequence[str] = ("rms",)) -> str:
+        return self.report(summaries).to_json()
+
+    def table(self, statistic: str = "rg", summary: str = "rms") -> str:
+        """A text table: methods down, surfaces across, with the ok-fraction of the last column."""
+        width = max(len(m) for m in self.methods) + 2
+        head = f"{statistic} ({summary})".ljust(width) + "".join(f"{n:>10d}" for n in self.surfaces) + "      ok"
+        lines = [head, "-" * len(head)]
+        for method in self.methods:
+            cells = []
+            for n in self.surfaces:
+                per_scene = self.errors[method][n]
+                cells.append(
+                    f"{metrics.summarise(per_scene[statistic], summary):10.4f}"
+                    if statistic in per_scene
+                    else f"{'*':>10}"
+                )
+            ok = self.ok_fraction(method, self.surfaces[-1])
+            lines.append(method.ljust(width) + "".join(cells) + f"  {ok:6.1%}")
+        return "\n".join(lines)
+
+
+def is_registered(label: str) -> bool:
+    """True when ``label`` names a registered estimator (see ``ccjax methods``)."""
+    try:
+        registry.lookup(label)
+        return True
+    except ValueError:
+        return False
+
+
+def weights_ready(label: str, world: World) -> bool:
+    """False for a learned method whose weights are not cached for ``world`` (never train silently).
+
+    Default method sets (``ccjax compare``, ``ccjax reproduce``) include the neural net (Barnard
+    1999 §4.5.5) only once ``ccjax train-net`` has cached its weights.
+    """
+    from ccjax.estimators import neural
+
+    return not neural.is_net_label(label) or neural.has_weights(world, label)
+
+
+def runnable_methods(labels: Sequence[str], world: World) -> list[str]:
+    """The labels of ``labels`` that are registered and, if learned, have cached weights."""
+    return [label for label in labels if is_registered(label) and weights_ready(label, world)]
+
+
+def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
+    """Refuse an image estimator where synthetic surface lists are the input.
+
+    Sweeps sample scenes as lists of surface RGBs (Barnard 1999 §4.7); an image estimator (grey
+    edge) needs ``(H, W, 3)`` images with neighbouring pixels, so it is run through the image
+    experiments instead.
+
+    Raises:
+        ValueError: naming ``label`` when ``model`` is an image estimator.
+    """
+    image = isinstance(model, AbstractImageEstimator) or getattr(type(model), "input_kind", "surfaces") == "image"
+    if image:
+        raise ValueError(
+            f"methods: {label!r} is an image estimator (it needs (H, W, 3) images, not the surface lists "
+            "a sweep samples); run it on images with `ccjax evaluate` / ccjax.images.run_images or on "
+            "synthetic images with `ccjax indexing` / ccjax.indexing.run_indexing"
+        )
+
+
+def resolve_methods(world: World, methods) -> list[tuple[str, AbstractEstimator]]:
+    """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted)."""
+    resolved = []
+    for method in methods:
+        if isinstance(method, str):
+            resolved.append((method, registry.fit(method, world)))
+        elif isinstance(method, tuple) and len(method) == 2 and isinstance(method[1], AbstractEstimator):
+            resolved.append(method)
+        elif isinstance(method, AbstractEstimator):
+            resolved.append((type(method).__name__, method))
+        else:
+            raise ValueError(f"methods: expected labels, Estimators or (label, Estimator) pairs, got {method!r}")
+        require_surface_estimator(*resolved[-1])
+    if not resolved:
+        raise ValueError("methods: empty")
+    return resolved
+
+
+def sweep(
+    world: World,
+    methods: Sequence,
+    n_surfaces: Sequence[int] = (4, 8, 16, 32, 64),
+    n_scenes: int = 1000,
+    key: jax.Array | None = None,
+    *,
+    specular=None,
+    noise=None,
+    clip: float | None = None,
+    chunk_size: int | None = None,
+    mesh: jax.sharding.Mesh | None = None,
+    progress: bool = True,
+) -> SweepResult:
+    """Run every method on the same synthetic scenes for each number of surfaces (Barnard 1999 §4.7).
+
+    Arguments:
+        world: the world.
+        methods: labels (``"GW"``), fitted surface estimators, or ``(label, estimator)`` pairs.
+            Image estimators (grey edge) are refused with a ValueError.
+        n_surfaces: numbers of surfaces per scene.
+        n_scenes: scenes per number of surfaces (1000 in the thesis).
+        key: PRNG key (default ``jax.random.key(0)``).
+        specular, noise, clip: scene options, as in :func:`ccjax.scenes.sample`.
+        chunk_size: scenes per compiled chunk (default: about 4M surfaces per chunk), which bounds
+            memory whatever ``n_scenes`` is.
+        mesh: optional ``jax.sharding.Mesh`` with one axis; the scene axis of every chunk is sharded
+            over it (multi-device or multi-host).
+        progress: show a progress bar.
+
+    Returns:
+        A :class:`SweepResult`.
+    """
+    if not isinstance(n_scenes, int) or n_scenes < 1:
+        raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")
+    n_reflectances = int(world.reflectances.shape[0])
+    surfaces = [int(n) for n in n_surfaces]
+    if not surfaces or any(not 1 <= n <= n_reflectances for n in surfaces):
+        raise ValueError(f"n_surfaces: expected integers in [1, {n_reflectances}], got {list(n_surfaces)}")
+    specular, noise = resolve_options(specular, noise, clip)
+    resolved = resolve_methods(world, methods)
+    labels = [label for label, _ in resolved]
+    models = [model for _, model in resolved]
+    key = jax.random.key(0) if key is None else key
+    tables = SceneTables.from_world(world)
+    sharding = None
+    n_devices = 1
+    if mesh is not None:
+        if len(mesh.axis_names) != 1:
+            raise ValueError(f"mesh: expected one axis, got {mesh.axis_names}")
+        sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(mesh.axis_names[0]))
+        n_devices = mesh.devices.size
+
+    result = SweepResult(methods=labels, surfaces=surfaces, n_scenes=n_scenes)
+    plan = []
+    for n in surfaces:
+        size = chunk_size or max(64, min(16384, _SURFACES_PER_CHUNK // n))
+        size = min(size, n_scenes)
+        size = int(math.ceil(size / n_devices) * n_devices)
+        plan.append((n, size, int(math.ceil(n_scenes / size))))
+    bar = tqdm(
+        total=sum(chunks for _, _, chunks in plan), desc="sweep", unit="chunk", disable=not progress, leave=False
+    )
+    for n, size, chunks in plan:
+        stream = jax.random.fold_in(key, n)
+        collected: list[list[dict]] = []
+        for index in range(chunks):
+            # Every chunk has the same shape (the last is padded with later scenes of the stream
+            # and trimmed), so each (surfaces, chunk size) compiles once.
+            keys = scene_keys(stream, index * size, size)
+            if sharding is not None:
+                keys = jax.device_put(keys, sharding)
+            out = _chunk(models, tables, keys, n, specular, noise, clip)
+            collected.append(jax.device_get(out))
+            bar.update()
+        for position, (label, model) in enumerate(resolved):
+            merged = {
+                name: np.concatenate([chunk[position][name] for chunk in collected])[:n_scenes]
+                for name in (*STATISTICS, "ok")
+                if model.estimates_brightness or name not in BRIGHTNESS_STATISTICS
+            }
+            result.errors.setdefault(label, {})[n] = merged
+    bar.close()
+    return result
