@@ -1,4 +1,4 @@
-"""Sweep engine, reproduction of the thesis tables, sharding, CLI."""
+"""Sweep engine, reports, reproduction of the thesis tables, sharding, CLI."""
 
 import json
 import os
@@ -39,11 +39,11 @@ def test_sweep_rows_and_outputs(small_sweep, tmp_path):
     # NOTHING is a chromaticity method: no RGB-valued statistics.
     assert {r["statistic"] for r in rows if r["method"] == "NOTHING"} == {"angular", "rg", "map_rg"}
     assert {r["statistic"] for r in rows if r["method"] == "GW"} == set(experiments.STATISTICS)
-    gw_rms = [
+    gw_rms = next(
         r
         for r in rows
         if r["method"] == "GW" and r["surfaces"] == 4 and r["statistic"] == "rg" and r["summary"] == "rms"
-    ][0]
+    )
     assert gw_rms["value"] == pytest.approx(float(np.sqrt(np.mean(small_sweep.errors["GW"][4]["rg"] ** 2))))
     assert json.loads(small_sweep.to_json())["rows"][0]["method"] == "NOTHING"
     assert small_sweep.to_csv().splitlines()[0].startswith("method,surfaces,statistic")
@@ -60,6 +60,7 @@ def test_more_surfaces_help(small_sweep):
     assert small_sweep.value("NOTHING", 64, "rg") == pytest.approx(small_sweep.value("NOTHING", 4, "rg"), rel=0.1)
 
 
+@pytest.mark.external_data
 def test_reproduce_table_4_2_simple_rows(barnard_world):
     """Thesis Table 4.2: angular and (r,g) within 10 %, RGB-valued columns within 15 %."""
     result = reproduce("4.2", barnard_world, SIMPLE, 1000, jax.random.key(0), progress=False)
@@ -70,17 +71,18 @@ def test_reproduce_table_4_2_simple_rows(barnard_world):
 
 
 @pytest.mark.slow
+@pytest.mark.external_data
 def test_reproduce_table_4_3_simple_rows(barnard_world):
     result = reproduce("4.3", barnard_world, SIMPLE, 1000, jax.random.key(0), progress=False)
     for row in result.rows:
         assert abs(row["relative_difference"]) <= 0.15, row
 
 
-def test_reproduce_rejects_unknown(barnard_world):
+def test_reproduce_rejects_unknown(default_world):
     with pytest.raises(ValueError, match="table"):
-        reproduce("9.9", barnard_world)
+        reproduce("9.9", default_world)
     with pytest.raises(ValueError, match="methods"):
-        reproduce("4.2", barnard_world, ["GREY-WORLD-X"])
+        reproduce("4.2", default_world, ["GREY-WORLD-X"])
 
 
 SHARDING_SCRIPT = r"""
@@ -151,6 +153,7 @@ def test_cli_errors_are_clear(capsys):
         cli.main(["compare", "--surfaces", "a,b"])
 
 
+@pytest.mark.external_data
 def test_cli_reproduce_json(barnard_world, capsys):
     assert cli.main(["reproduce", "4.2", "--methods", "GW", "--scenes", "200", "--json", "--no-progress"]) == 0
     payload = json.loads(capsys.readouterr().out)
@@ -180,3 +183,131 @@ def test_reproduction_text_counts_bands_and_checks_orderings():
     assert "ECRULE-SCWIA-12 0.0459 < ECRULE-MV 0.044 at rg@8: FAILS" in text
     # Orderings whose rows were not run are not reported.
     assert "SCWIA-9" not in text
+
+
+def test_reproduction_text_and_json_layout():
+    """The text view keeps the layout ``ccjax reproduce`` always printed; JSON keeps {"table", "rows"}."""
+    rows = [
+        {"method": "GW", "column": "rg", "ours": 0.0571, "thesis": 0.058, "relative_difference": -0.0155,
+         "ok_fraction": 1.0},
+        {"method": "ECRULE-SCWIA-12", "column": "map_rgb", "ours": 51.25, "thesis": 51.1,
+         "relative_difference": 0.00293, "ok_fraction": 0.987},
+    ]  # fmt: skip
+    lines = experiments.Reproduction("4.2", rows).text().splitlines()
+    assert lines[0] == "Table 4.2: ours vs thesis (RGB-valued errors in thesis units, white = 255)"
+    assert lines[1] == "method                column              ours    thesis     diff  ok"
+    assert lines[2] == "GW                    rg                0.0571     0.058    -1.6%  100%"
+    assert lines[3] == "ECRULE-SCWIA-12       map_rgb            51.25      51.1    +0.3%  99%"
+    assert lines[4] == "cells: 2/2 within ±10%, 2/2 within ±15%, 2/2 within ±20%; largest |diff| 1.6%"
+    payload = json.loads(experiments.Reproduction("4.2", rows).to_json())
+    assert list(payload) == ["table", "rows"] and payload["rows"] == rows
+
+
+def test_report_columns_never_touch():
+    report = experiments.Report(
+        [{"name": "a-very-long-camera-name-indeed-longer-than-any-fixed-width", "source": "embedded"},
+         {"name": "short", "source": None}],
+        [experiments.Column("name"), experiments.Column("source", gap=2)],
+    )  # fmt: skip
+    head, first, second = report.text().splitlines()
+    start = head.index("source")
+    assert first[start:] == "embedded" and first[start - 2 : start] == "  "
+    assert second[start:] == "-" and second[:start].rstrip() == "short"
+    assert report.to_csv().splitlines() == [
+        "name,source",
+        "a-very-long-camera-name-indeed-longer-than-any-fixed-width,embedded",
+        "short,",
+    ]
+    assert json.loads(report.to_json())["rows"][1] == {"name": "short", "source": None}
+
+
+def test_sweep_refuses_image_estimators(default_world):
+    with pytest.raises(ValueError, match=r"'grey-edge-1-6-2'.* is an image estimator"):
+        sweep(default_world, ["GW", "grey-edge-1-6-2"], [4], 10, progress=False)
+    from ccjax.estimators import registry
+
+    model = registry.fit("grey-edge-1-6-2", default_world)
+    with pytest.raises(ValueError, match=r"'edges'.* is an image estimator"):
+        sweep(default_world, [("edges", model)], [4], 10, progress=False)
+
+
+def test_experiments_import_is_cheap():
+    """Importing ccjax.experiments does not import the chapter-specific experiments or matplotlib."""
+    script = (
+        "import sys, ccjax.experiments, ccjax.cli\n"
+        "heavy = [m for m in sys.modules if m.startswith(('ccjax.experiments.chapter5', 'ccjax.experiments.indexing',"
+        " 'ccjax.experiments.evaluation', 'matplotlib'))]\n"
+        "print(heavy)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "[]"
+
+
+def _commands() -> list[str]:
+    import argparse
+
+    sub = argparse.ArgumentParser(prog="ccjax").add_subparsers()
+    for add in cli.COMMANDS:
+        add(sub)
+    return list(sub.choices)
+
+
+def test_every_command_group_builds_and_has_help(capsys):
+    commands = _commands()
+    # One group module per command group, every command reachable from the one parser.
+    assert {group.__name__.rsplit(".", 1)[1] for group in cli.GROUPS} == {
+        "synthetic", "catalogue", "photos", "indexing", "training", "sharpen", "calibrate"
+    }  # fmt: skip
+    assert set(commands) == {
+        "compare", "reproduce", "world", "cameras", "methods", "estimate", "correct", "evaluate", "indexing",
+        "train-net", "sharpen", "calibrate",
+    }  # fmt: skip
+    for command in commands:
+        with pytest.raises(SystemExit) as exit_:
+            cli.main([command, "--help"])
+        assert exit_.value.code == 0
+        assert f"usage: ccjax {command}" in capsys.readouterr().out
+
+
+def test_cli_methods_lists_every_family_in_columns(capsys):
+    from ccjax.cli.catalogue import registered_families
+
+    assert cli.main(["methods"]) == 0
+    head, *lines = capsys.readouterr().out.rstrip("\n").splitlines()
+    examples = [entry.example for entry in registered_families()]
+    assert len(lines) == len(examples)
+    for heading in ("label grammar", "example", "input", "traceable fit", "description"):
+        assert heading in head
+    starts = [head.index(name) for name in ("example", "input", "traceable fit", "description")]
+    for line, example in zip(lines, examples, strict=True):
+        assert line[starts[0] :].startswith(example + " ")
+        for start in starts:
+            assert line[start - 2 : start] == "  " and line[start] != " "  # columns never run together
+    for line, entry in zip(lines, registered_families(), strict=True):
+        assert line[starts[1] :].startswith(getattr(entry, "input_kind", "?") + " ")
+    assert cli.main(["methods", "--json"]) == 0
+    assert [row["example"] for row in json.loads(capsys.readouterr().out)["rows"]] == examples
+
+
+def test_cli_cameras_columns(capsys):
+    assert cli.main(["cameras"]) == 0
+    head, *lines = capsys.readouterr().out.rstrip("\n").splitlines()
+    start = head.index("source")
+    assert len(lines) > 10
+    for line in lines:
+        assert line[start - 2 : start] == "  " and line[start] != " "
+
+
+def test_cli_world_plot(tmp_path, capsys):
+    assert cli.main(["world", "--plot", str(tmp_path / "w.png")]) == 0
+    assert "canonical white RGB" in capsys.readouterr().out
+    assert (tmp_path / "w.png").stat().st_size > 10_000
+
+
+@pytest.mark.external_data
+def test_sfu321_camera_check(barnard_world):
+    """The Sony DXC-930 curves against SFU-321: every lab light within a few degrees (§4.4)."""
+    check = experiments.sfu321_check(barnard_world)
+    assert len(check.rows) == 11 and sum(row["images"] for row in check.rows) == 321
+    assert all(0.0 <= row["angular"] < 5.0 for row in check.rows), check.text()

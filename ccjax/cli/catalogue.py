@@ -57,23 +57,32 @@ def run_cameras(args) -> int:
     return 0
 
 
+def registered_families() -> list:
+    """The registry entries, one per family (``registry.available()`` gives entries, or, in
+    releases before the entries carried their grammar, ``(example, description)`` pairs)."""
+    from ccjax.estimators import registry
+
+    entries = []
+    for item in registry.available():
+        entries.append(registry.lookup(item[0])[0] if isinstance(item, tuple) else item)
+    return entries
+
+
 def method_catalogue():
     """A :class:`ccjax.experiments.Report` of every registered family: grammar, example, input
     kind, whether the fit is traceable, description."""
-    from ccjax.estimators import registry
     from ccjax.experiments import Column, Report
 
     rows = []
-    for example, description in registry.available():
-        entry, _ = registry.lookup(example)
+    for entry in registered_families():
         traceable = getattr(entry, "traceable_fit", None)
         rows.append(
             {
                 "grammar": getattr(entry, "grammar", None) or entry.pattern.pattern,
-                "example": example,
+                "example": entry.example,
                 "input_kind": getattr(entry, "input_kind", None),
                 "traceable_fit": None if traceable is None else ("yes" if traceable else "no"),
-                "description": description,
+                "description": entry.description,
             }
         )
     columns = [

@@ -18,7 +18,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ccjax import metrics
-from ccjax.estimators import registry
+from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
 from ccjax.experiments.reports import Column, Report
 from ccjax.scenes import SceneTables, resolve_options, sample_batch, scene_keys
@@ -187,6 +187,9 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
     Raises:
         ValueError: naming ``label`` when ``model`` is an image estimator.
     """
+    check = getattr(base, "require_kind", None)  # the estimator contract's own check, where it exists
+    if check is not None:
+        check(model, "surfaces", f"methods: {label!r}")
     image = isinstance(model, AbstractImageEstimator) or getattr(type(model), "input_kind", "surfaces") == "image"
     if image:
         raise ValueError(
