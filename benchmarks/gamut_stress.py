@@ -22,6 +22,7 @@ import numpy as np
 
 from ccjax import metrics
 from ccjax.estimators import gamut
+from ccjax.estimators.base import Status
 from ccjax.scenes import SceneTables, resolve_options, sample_batch, scene_keys
 from ccjax.world import World
 
@@ -30,13 +31,15 @@ from ccjax.world import World
 def _chunk(model, tables, keys, n_surfaces):
     batch = sample_batch(keys, tables, n_surfaces, None, None, None)
     out = jax.vmap(lambda r, m: gamut.estimate_all(model, r, m, powers=(3, 12, 24)))(batch.rgb, batch.mask)
+    # The diagnostic re-runs the (cheap) locating stage and reduction; the estimates are unaffected.
+    exact = jax.vmap(gamut.GamutMapping(model, "MV").reduction_exact)(batch.rgb, batch.mask)
     summary = {}
     for name, estimate in out.items():
         summary[name] = {
             "nan": jnp.sum(~jnp.isfinite(estimate.illuminant)),
-            "relaxed": estimate.relaxation > 0,
-            "fell_back": ~jnp.isfinite(estimate.relaxation),
-            "inexact": ~estimate.exact,
+            "relaxed": estimate.status == Status.RELAXED,
+            "fell_back": (estimate.status == Status.EMPTY_SET) | (estimate.status == Status.NO_DATA),
+            "inexact": ~exact,
             "rg": metrics.rg_error(estimate.illuminant, batch.illuminant),
         }
     return summary

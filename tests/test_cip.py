@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from ccjax.estimators import cip, registry
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
 from ccjax.scenes import sample
 
 PAD = 8
@@ -23,14 +24,15 @@ BATCH = 32
 
 
 @pytest.fixture(scope="module")
-def models(barnard_world):
-    return {selector: cip.fit(barnard_world, selector) for selector in cip.SELECTORS}
+def models(default_world):
+    return {selector: cip.fit(default_world, selector) for selector in cip.SELECTORS}
 
 
 def batch_runner(model, pad):
     """Run a model on any number of scenes of ``pad`` pixels, in batches of :data:`BATCH` (one
     compiled shape per model and pad)."""
-    compiled = eqx.filter_jit(jax.vmap(model))
+    batched = eqx.filter_jit(lambda estimator, rgb, mask: jax.vmap(estimator)(rgb, mask))
+    compiled = lambda rgb, mask: batched(model, rgb, mask)
 
     def call(rgb, mask):
         rgb, mask = np.asarray(rgb, np.float32), np.asarray(mask, bool)
@@ -56,15 +58,15 @@ def run(models):
 
 
 @pytest.fixture(scope="module")
-def geometry(barnard_world):
-    return oracle.make_world(barnard_world.canonical_rgb, barnard_world.train_whites, barnard_world.canonical_white)
+def geometry(default_world):
+    return oracle.make_world(default_world.canonical_rgb, default_world.train_whites, default_world.canonical_white)
 
 
 @pytest.fixture(scope="module")
-def pool(barnard_world):
+def pool(default_world):
     """One batch of 8-surface scenes for the default tests (sampling compiles once); the first
     ``n`` surfaces of a scene are an ``n``-surface scene (surfaces are drawn without replacement)."""
-    scenes = sample(jax.random.key(0), barnard_world, 256, PAD)
+    scenes = sample(jax.random.key(0), default_world, 256, PAD)
     return np.asarray(scenes.rgb), np.asarray(scenes.illuminant, np.float64)
 
 
@@ -140,26 +142,26 @@ def test_matches_oracle(run, geometry, pool, selector, n_surfaces):
 @pytest.mark.slow
 @pytest.mark.parametrize("selector", cip.SELECTORS)
 @pytest.mark.parametrize("n_surfaces", [4, 8, 64])
-def test_matches_oracle_many_scenes(barnard_world, geometry, selector, n_surfaces):
-    runner = batch_runner(cip.fit(barnard_world, selector), 64)
+def test_matches_oracle_many_scenes(default_world, geometry, selector, n_surfaces):
+    runner = batch_runner(cip.fit(default_world, selector), 64)
 
     def call(_, rgb, mask):
         return runner(rgb, mask)
 
     n_scenes = 40 if selector == "ICA" else 200
-    errors, grid_ok = _compare(call, geometry, barnard_world, selector, n_surfaces, n_scenes, 64, seed=100 + n_surfaces)
+    errors, grid_ok = _compare(call, geometry, default_world, selector, n_surfaces, n_scenes, 64, seed=100 + n_surfaces)
     assert len(errors) >= n_scenes // 2
     assert np.median(errors) < TOLERANCE[selector]
     assert np.percentile(errors, 90) < 4 * TOLERANCE[selector]
     assert np.mean(grid_ok) >= 0.95
 
 
-def test_ica_against_a_dense_monte_carlo(run, geometry, barnard_world):
+def test_ica_against_a_dense_monte_carlo(run, geometry, default_world):
     # One weakly constraining scene (a single grey surface under the average training light), so
     # the feasible cone is large; a 2M-sample Monte-Carlo pins its solid-angle centroid to about
     # 3e-4 in (r,g), which checks the weight w1 w2 w3 / (|m|^3 (rgb)^2) well below the scene-level
     # tolerance.
-    observed = 0.3 * np.asarray(barnard_world.train_whites, np.float64).mean(axis=0, keepdims=True)
+    observed = 0.3 * np.asarray(default_world.train_whites, np.float64).mean(axis=0, keepdims=True)
     exact, count = oracle.ica(geometry, observed, 2_000_000, seed=1)
     assert count > 100_000
     rgb = np.zeros((1, PAD, 3))
@@ -174,12 +176,12 @@ def test_ica_against_a_dense_monte_carlo(run, geometry, barnard_world):
 # properties
 
 
-def test_true_illuminant_is_feasible_under_the_diagonal_model(models, barnard_world):
+def test_true_illuminant_is_feasible_under_the_diagonal_model(models, default_world):
     # Surfaces rendered from their canonical RGBs by an exact diagonal map of a training light:
     # that light's direction satisfies every perspective and illumination constraint.
-    canonical = np.asarray(barnard_world.canonical_rgb)
-    white = np.asarray(barnard_world.canonical_white)
-    lights = np.asarray(barnard_world.train_whites)
+    canonical = np.asarray(default_world.canonical_rgb)
+    white = np.asarray(default_world.canonical_white)
+    lights = np.asarray(default_world.train_whites)
     rng = np.random.default_rng(0)
     violation_of = eqx.filter_jit(models["ICA"].violation)
     for light in rng.choice(len(lights), 5, replace=False):
@@ -224,8 +226,8 @@ def test_mv_is_bluest_and_ica_least_biased(run, pool):
 # degenerate input
 
 
-def test_degenerate_scenes_are_finite_and_flagged(run, barnard_world, pool):
-    white = np.asarray(barnard_world.canonical_white, np.float32)
+def test_degenerate_scenes_are_finite_and_flagged(run, default_world, pool):
+    white = np.asarray(default_world.canonical_white, np.float32)
     some = pool[0][200]
     cases = {
         "all masked": (some, np.zeros(PAD, bool), False),
@@ -270,29 +272,40 @@ def test_relaxed_scene_stays_near_the_data(run, pool):
 # registry and validation
 
 
-def test_registry_labels(barnard_world):
+def test_registry_labels(default_world):
     for label, selector in (("CIP-MV", "MV"), ("CIP-AVE", "AVE"), ("CIP-HA", "AVE"), ("CIP-ICA", "ICA")):
-        model = registry.fit(label, barnard_world)
+        model = registry.fit(label, default_world)
         assert isinstance(model, cip.CIP)
         assert model.selector == selector
         assert not model.estimates_brightness
-    assert registry.fit("CIP-AVE", barnard_world).illumination == "hull"
-    assert registry.fit("CIP-MV", barnard_world).illumination == "exact"
+    assert registry.fit("CIP-AVE", default_world).illumination == "hull"
+    assert registry.fit("CIP-MV", default_world).illumination == "exact"
+
+
+def test_model_is_a_final_surface_estimator_and_a_jit_argument(models, pool):
+    rgb, mask = _scenes(pool, 1, 8, PAD, seed=3)
+    estimate = jax.jit(lambda m, *a: m(*a))(models["MV"], rgb[0], mask[0])
+    assert isinstance(models["MV"], AbstractSurfaceEstimator)
+    assert type(estimate) is Estimate
+    assert int(estimate.status) in (Status.ESTIMATED, Status.RELAXED)
+    assert (int(estimate.status) == Status.RELAXED) == (float(estimate.relaxation) > 0)
+    nothing = jax.jit(lambda m, *a: m(*a))(models["MV"], rgb[0], np.zeros(PAD, bool))
+    assert int(nothing.status) == Status.NO_DATA
 
 
 @pytest.mark.parametrize(
     "options", [{"selector": "MAX"}, {"illumination": "convex"}, {"cone": "cube"}, {"fine": 2}, {"coarse": 3.5}]
 )
-def test_fit_rejects_bad_options(barnard_world, options):
+def test_fit_rejects_bad_options(default_world, options):
     options = {"selector": "ICA", **options}
     with pytest.raises(ValueError, match=next(iter(set(options) - {"selector"}), "selector")):
-        cip.fit(barnard_world, **options)
+        cip.fit(default_world, **options)
 
 
 @pytest.mark.slow
-def test_runs_under_x64(barnard_world, pool):
+def test_runs_under_x64(default_world, pool):
     rgb, mask = _scenes(pool, 4, 8, PAD, seed=224)
-    model32 = cip.fit(barnard_world, "ICA")
+    model32 = cip.fit(default_world, "ICA")
     with jax.enable_x64(True):
         model64 = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), model32)
         out = jax.jit(jax.vmap(model64))(jnp.asarray(rgb, jnp.float64), jnp.asarray(mask))

@@ -38,6 +38,8 @@ fine step. When no direction is feasible the constraints are relaxed by a growin
 
 from __future__ import annotations
 
+import typing
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -45,7 +47,9 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 from scipy.spatial import ConvexHull
 
-from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
+from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate
+from ccjax.estimators.gamut.relaxation import relaxation_level
+from ccjax.estimators.gamut.selectors import finish
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -54,10 +58,6 @@ ILLUMINATION = ("exact", "hull")
 CONES = ("ball", "plane")
 DEFAULT_ILLUMINATION = {"MV": "exact", "AVE": "hull", "ICA": "exact"}
 
-# Relaxation ladder of the normalised violation (a sine): 0, then 1e-3 doubling. The last level
-# exceeds 1, the largest possible sine, so some grid direction is always accepted.
-RELAX_FIRST = 1e-3
-RELAX_STEPS = 12
 # A direction outside the chromaticity triangle gets a violation above every ladder level.
 _OUTSIDE = 4.0
 # Margin (in r and g) around the allowed illuminant region, so relaxed sets can widen past it.
@@ -222,7 +222,8 @@ def _coverage(v: Float[Array, " G"], n: int) -> Float[Array, " G"]:
     return jnp.clip(fraction, 0.0, 1.0)
 
 
-class CIP(Estimator):
+@typing.final
+class CIP(AbstractSurfaceEstimator):
     """Colour in Perspective with the illumination constraint, one scene per call.
 
     Attributes:
@@ -250,7 +251,9 @@ class CIP(Estimator):
     coarse: int = eqx.field(static=True, default=24)
     fine: int = eqx.field(static=True, default=48)
 
-    def violation(self, u: Float[Array, "3 G"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]) -> Float[Array, " G"]:
+    def violation(
+        self, u: Float[Array, "3 G"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]
+    ) -> Float[Array, " G"]:
         """Largest normalised violation (a sine) of the perspective and illumination constraints.
 
         ``<= 0`` exactly when ``u`` is feasible; a relaxation level ``eps`` accepts ``<= eps``.
@@ -291,11 +294,10 @@ class CIP(Estimator):
         # values between about 1e-15 and 1e15.
         valid = mask & (jnp.sum(rgb, axis=-1) > 0)
         has_data = jnp.any(valid)
-        levels = jnp.concatenate([jnp.zeros(1), RELAX_FIRST * 2.0 ** jnp.arange(RELAX_STEPS)]).astype(rgb.dtype)
 
         def level_of(v):
             # First ladder level at which some direction is accepted.
-            return levels[jnp.minimum(jnp.sum(levels < jnp.min(v)), RELAX_STEPS)]
+            return relaxation_level(jnp.min(v))
 
         # Locate: coarse grid over the allowed region, bounding box of the accepted directions
         # widened by one coarse step (the set's edge lies within a step of an accepted centre).
@@ -303,7 +305,7 @@ class CIP(Estimator):
         lower, upper = domain[jnp.array([0, 2])], domain[jnp.array([1, 3])]
         u_coarse = _grid(domain, self.coarse)
         bound = _cell_lower_bound(self.violation(u_coarse, rgb, valid), self.coarse)
-        accepted = (bound <= level_of(bound))[None, :]
+        accepted = (bound <= level_of(bound)[0])[None, :]
         step = (upper - lower) / self.coarse
         low = jnp.maximum(jnp.min(jnp.where(accepted, u_coarse[:2], jnp.inf), axis=1) - step, lower)
         high = jnp.minimum(jnp.max(jnp.where(accepted, u_coarse[:2], -jnp.inf), axis=1) + step, upper)
@@ -311,14 +313,13 @@ class CIP(Estimator):
         # Integrate: fine grid over the located box.
         u = _grid(jnp.stack([low[0], high[0], low[1], high[1]]), self.fine)
         v = self.violation(u, rgb, valid)
-        level = level_of(v)
+        level, failed = level_of(v)
         feasible = v <= level
         if self.selector == "MV":
             direction = self._max_area(u, feasible, (high - low) / self.fine, level, rgb, valid)
         else:
             direction = self._average(u, _coverage(v - level, self.fine))
-        estimate = with_fallback(direction, has_data & jnp.any(feasible), self.fallback)
-        return Estimate(illuminant=estimate.illuminant, ok=estimate.ok & (level <= 0))
+        return finish(direction, has_data, ~failed & jnp.any(feasible), level, self.fallback.astype(rgb.dtype))
 
     @staticmethod
     def _log_area(u: Float[Array, "3 G"]) -> Float[Array, " G"]:

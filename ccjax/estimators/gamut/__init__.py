@@ -8,12 +8,11 @@ differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``,
 from ccjax.estimators.gamut.geometry import Facets, cone_planes, gamut_facets, nd_points
 from ccjax.estimators.gamut.kernel import Grid, GridOptions, evaluate
 from ccjax.estimators.gamut.model import GamutMapping, GamutModel, estimate_all, fit
-from ccjax.estimators.gamut.selectors import GamutEstimate, select
+from ccjax.estimators.gamut.selectors import select
 from ccjax.estimators.gamut.soft import SoftGamutMapping
 
 __all__ = [
     "Facets",
-    "GamutEstimate",
     "GamutMapping",
     "GamutModel",
     "Grid",

@@ -38,6 +38,9 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
+from ccjax.estimators.gamut import relaxation
+from ccjax.estimators.gamut.relaxation import relaxation_level
+
 # Directions closer than this to the edge of the chromaticity triangle are never evaluated.
 _EDGE = 1e-4
 # Violation value of directions outside the chromaticity triangle (a sine is <= 1).
@@ -76,8 +79,8 @@ class GridOptions:
     large_scene: int = 128
     large_fine_observations: int = 48
     reduction_samples: int = 5
-    first_level: float = 1e-3
-    levels: int = 10
+    first_level: float = relaxation.FIRST_LEVEL
+    levels: int = relaxation.LEVELS
 
 
 class Observations(eqx.Module):
@@ -179,18 +182,6 @@ def violations(model, v, valid, obs: Observations) -> tuple[Array, Array, Array,
     cone = cone_violation(v * model.white.astype(v.dtype), model.map_planes.astype(v.dtype))
     region = jnp.maximum(surface, jnp.minimum(illuminant, cone)) if model.constraint == "ECRULE" else surface
     return jnp.where(valid, region, _BIG), surface, illuminant, cone
-
-
-# ---------------------------------------------------------------------------------------------
-# relaxation levels (DESIGN.md §4)
-
-
-def relaxation_level(violation, options: GridOptions) -> tuple[Array, Array]:
-    """The first level of ``0, eps_1, 2 eps_1, ...`` not below ``violation``, and whether none is."""
-    first = options.first_level
-    steps = jnp.ceil(jnp.log2(jnp.maximum(violation, first) / first))
-    level = jnp.where(violation <= 0, 0.0, first * 2.0**steps)
-    return level.astype(violation.dtype), (violation > 0) & (steps >= options.levels)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -300,7 +291,7 @@ def locate(model, obs: Observations, q, usable, options: GridOptions):
         values = violations(model, v, valid, few)[0]
         nearest = jnp.argmin(values)
         best = jnp.minimum(best, values[nearest])
-        level, _ = relaxation_level(best, options)
+        level, _ = relaxation_level(best, options.first_level, options.levels)
         chosen = values <= level
         chosen = jnp.where(jnp.any(chosen), chosen, jnp.arange(values.shape[0]) == nearest)
         lo, hi = _box_of(points, step[None, :], chosen)

@@ -9,15 +9,17 @@ approximation), and the domain of illuminant directions the locating stage start
 
 from __future__ import annotations
 
+import typing
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import Estimator
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
 from ccjax.estimators.gamut import geometry
 from ccjax.estimators.gamut.kernel import GridOptions, evaluate
-from ccjax.estimators.gamut.selectors import SELECTORS, GamutEstimate, select
+from ccjax.estimators.gamut.selectors import SELECTORS, select
 from ccjax.world import World
 
 CONSTRAINTS = ("CRULE", "ECRULE")
@@ -124,11 +126,12 @@ def fit(
     )
 
 
-class GamutMapping(Estimator):
+@typing.final
+class GamutMapping(AbstractSurfaceEstimator):
     """A gamut-mapping estimator: one model and one selector (Table 4.1, §6.2).
 
     ``GamutMapping(model, "SCWIA", 12)`` is ECRULE-SCWIA-12 when ``model`` is an ECRULE model.
-    Call it on one scene, ``(rgb (P, 3), mask (P,)) -> GamutEstimate``; vmap for batches.
+    Call it on one scene, ``(rgb (P, 3), mask (P,)) -> Estimate``; vmap for batches.
     """
 
     model: GamutModel
@@ -145,13 +148,19 @@ class GamutMapping(Estimator):
         if self.selector == "SCWIA" and not self.power > 0:
             raise ValueError(f"power: SCWIA's N must be positive, got {self.power!r}")
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> GamutEstimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         return select(self.model, evaluate(self.model, rgb, mask), self.selector, self.power)
+
+    def reduction_exact(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, ""]:
+        """Diagnostic: whether the observation reduction of a large scene kept every observation
+        it selected as a support point (False means the fine stage ran on a budgeted subset, so
+        the estimate may differ from the unreduced one). One scene; vmap for batches."""
+        return evaluate(self.model, rgb, mask).exact
 
 
 def estimate_all(
     model: GamutModel, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"], powers=(3, 6, 9, 12, 18, 24)
-) -> dict[str, GamutEstimate]:
+) -> dict[str, Estimate]:
     """Every selector of a model from ONE evaluation of the direction grid.
 
     Returns:

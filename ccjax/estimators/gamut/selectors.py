@@ -20,24 +20,12 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import Estimate, with_fallback
-from ccjax.estimators.gamut.kernel import _BIG, Grid, directions, inverse_extent, relaxation_level, violations
+from ccjax.estimators.base import TINY, Estimate
+from ccjax.estimators.gamut.kernel import _BIG, Grid, directions, inverse_extent, violations
+from ccjax.estimators.gamut.relaxation import relaxation_level, status_of
 
 SELECTORS = ("MV", "AVE", "ICA", "SCWIA")
-
-
-class GamutEstimate(Estimate):
-    """A gamut-mapping estimate with its diagnostics.
-
-    Attributes:
-        relaxation: the level ``eps`` at which feasible directions were found (0: none needed).
-        exact: the observation reduction (large scenes) kept every observation it selected.
-    """
-
-    relaxation: Float[Array, "..."]
-    exact: Bool[Array, "..."]
 
 
 def mask_violation(constraint: str, selector: str, surface, illuminant, cone):
@@ -98,7 +86,7 @@ def _refine_max_volume(model, grid: Grid, selector: str, level, start):
     return u[0] * inverse[0]
 
 
-def select(model, grid: Grid, selector: str, power: float = 12.0) -> GamutEstimate:
+def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
     """Apply one selector to a scene's fine grid.
 
     Arguments:
@@ -108,15 +96,16 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> GamutEstima
         power: SCWIA's ``N``.
 
     Returns:
-        The estimate; ``ok`` is False when constraints were relaxed or no level had a solution
-        (then the average training illuminant is returned).
+        The estimate with its status (``RELAXED`` with ``relaxation = eps`` when the constraints
+        were relaxed; ``NO_DATA`` / ``EMPTY_SET`` with the average training illuminant when there
+        were no usable observations / no level had a solution).
     """
     white = model.white.astype(grid.rg.dtype)
     bounded = grid.valid & (grid.inverse_extent > 0)
     violation = jnp.where(
         bounded, mask_violation(model.constraint, selector, grid.surface, grid.illuminant, grid.cone), _BIG
     )
-    level, failed = relaxation_level(jnp.min(violation), model.options)
+    level, failed = relaxation_level(jnp.min(violation), model.options.first_level, model.options.levels)
     feasible = violation <= level
     u, v, _ = directions(grid.rg)
     log_t = -jnp.log(jnp.where(bounded, grid.inverse_extent, 1.0))
@@ -140,11 +129,15 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> GamutEstima
     else:
         raise ValueError(f"selector: expected one of {SELECTORS}, got {selector!r}")
 
-    found = grid.usable & ~failed & jnp.any(feasible)
-    estimate = with_fallback(illuminant, found, model.fallback.astype(grid.rg.dtype))
-    return GamutEstimate(
-        illuminant=estimate.illuminant,
-        ok=estimate.ok & (level == 0),
-        relaxation=jnp.where(found, level, jnp.inf).astype(grid.rg.dtype),
-        exact=grid.exact,
+    return finish(illuminant, grid.usable, ~failed & jnp.any(feasible), level, model.fallback.astype(grid.rg.dtype))
+
+
+def finish(illuminant, usable, found, level, fallback) -> Estimate:
+    """The :class:`Estimate` of a selector's answer: ``fallback`` unless the scene had usable
+    observations, a level with feasible directions and a finite, positive answer."""
+    found = found & usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > TINY)
+    return Estimate(
+        illuminant=jnp.where(found, jnp.nan_to_num(illuminant), fallback),
+        status=status_of(usable, found, level),
+        relaxation=jnp.where(found, level, 0.0).astype(fallback.dtype),
     )

@@ -17,12 +17,14 @@ input), widened by ``margin`` so the soft mask has decayed at its edges.
 
 from __future__ import annotations
 
+import typing
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import Estimator, with_fallback
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
 from ccjax.estimators.gamut.kernel import (
     _BIG,
     _dot,
@@ -31,10 +33,10 @@ from ccjax.estimators.gamut.kernel import (
     directions,
     locate,
     observations,
-    relaxation_level,
 )
 from ccjax.estimators.gamut.model import GamutModel
-from ccjax.estimators.gamut.selectors import SELECTORS, GamutEstimate, mask_violation
+from ccjax.estimators.gamut.relaxation import relaxation_level
+from ccjax.estimators.gamut.selectors import SELECTORS, finish, mask_violation
 
 
 def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, " G"]:
@@ -42,7 +44,8 @@ def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, " G"]:
     return top[:, 0] + temperature * jnp.log(jnp.sum(jnp.exp((values - top) / temperature), axis=1))
 
 
-class SoftGamutMapping(Estimator):
+@typing.final
+class SoftGamutMapping(AbstractSurfaceEstimator):
     """A gamut-mapping selector with soft feasibility and soft selection.
 
     Attributes:
@@ -72,7 +75,7 @@ class SoftGamutMapping(Estimator):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name}: expected a positive temperature parameter, got {getattr(self, name)!r}")
 
-    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> GamutEstimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         model, options = self.model, self.model.options
         rgb = jnp.asarray(rgb)
         obs, q, usable = observations(model, rgb, mask)
@@ -98,7 +101,7 @@ class SoftGamutMapping(Estimator):
 
         bounded = valid & (inverse > 0)
         violation = jnp.where(bounded, violation, _BIG)
-        level, failed = relaxation_level(jax.lax.stop_gradient(jnp.min(violation)), options)
+        level, failed = relaxation_level(jax.lax.stop_gradient(jnp.min(violation)), options.first_level, options.levels)
         log_mask = jax.nn.log_sigmoid((level - violation) / self.kappa)
         log_mask = jnp.where(bounded, log_mask, -jnp.inf)
         log_t = -jnp.log(jnp.where(bounded, inverse, 1.0))
@@ -118,11 +121,4 @@ class SoftGamutMapping(Estimator):
             )
             weight = jax.nn.softmax(log_weight + log_mask)
             estimate = jnp.sum(weight[:, None] * u, axis=0) * jnp.sum(weight * jnp.where(bounded, inverse, 0.0))
-        found = jnp.any(usable) & ~failed
-        result = with_fallback(estimate, found, model.fallback.astype(dtype))
-        return GamutEstimate(
-            illuminant=result.illuminant,
-            ok=result.ok & (level == 0),
-            relaxation=jnp.where(found, level, jnp.inf).astype(dtype),
-            exact=jnp.asarray(True),
-        )
+        return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype))
