@@ -51,6 +51,18 @@ def read_options(args) -> dict:
     }
 
 
+def fit_cached(label: str, world):
+    """The fitted estimator, memoised (``registry.fit_cached``; ``images.cached_fit`` before it)."""
+    from ccjax.estimators import registry
+
+    memoised = getattr(registry, "fit_cached", None)
+    if memoised is None:
+        from ccjax import images
+
+        memoised = images.cached_fit
+    return memoised(label, world)
+
+
 def image_world(args):
     from ccjax import images
 
@@ -100,7 +112,7 @@ def run_estimate(args) -> int:
     paths = images.list_images(args.images)
     check_images(paths, args)
     world = image_world(args)
-    model = images.cached_fit(args.method, world)
+    model = fit_cached(args.method, world)
     results = images.run_images(
         paths,
         {args.method: [model]},
@@ -183,7 +195,7 @@ def run_correct(args) -> int:
             raise ValueError(f"sharpening: {args.sharpening} must hold an invertible 3x3 matrix")
     check_images(paths, args)
     world = image_world(args)
-    model = images.cached_fit(args.method, world)
+    model = fit_cached(args.method, world)
     canonical = world.canonical_white
     matrix = images.preview_matrix_cached(world)
     if source.is_dir():
@@ -252,9 +264,9 @@ def run_evaluate(args) -> int:
     fold_of = None
     if args.folds:
         fold_of, worlds = images.fold_worlds(world, truth, args.folds)
-        models = {label: [images.cached_fit(label, w) for w in worlds] for label in args.methods}
+        models = {label: [fit_cached(label, w) for w in worlds] for label in args.methods}
     else:
-        models = {label: [images.cached_fit(label, world)] for label in args.methods}
+        models = {label: [fit_cached(label, world)] for label in args.methods}
     results = images.run_images(
         paths,
         models,
