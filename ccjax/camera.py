@@ -14,7 +14,7 @@ from collections.abc import Callable
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from ccjax import data
 from ccjax.spectra import N_WAVELENGTHS
@@ -77,7 +77,7 @@ class Camera(eqx.Module):
             "'Sony DXC-930' and 'Jiang: <model>' need the external data; ccjax.cameras() lists all."
         )
 
-    def response(self, signal: Float[Array, "... 101"]) -> Float[Array, "... 3"]:
+    def response(self, signal: Float[ArrayLike, "... 101"]) -> Float[Array, "... 3"]:
         """Linear camera response of colour signals (reflectance x illuminant), ``signal @ sensors``."""
         return jnp.asarray(signal) @ self.sensors
 

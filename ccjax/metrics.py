@@ -1,4 +1,4 @@
-"""Error measures and summary statistics (Barnard 1999 §4.2, spec ch02-04 §7; DESIGN.md §7).
+"""Error measures and summary statistics (Barnard 1999 §4.2).
 
 Every error function works on single items and broadcasts over leading axes, so it is usable on
 batches directly and inside ``jit``/``vmap``/``grad``. Gradients are safe at zero error (no
@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
-_TINY = 1e-12
+# (r,g) chromaticity and its inverse have one implementation, in ccjax._colour; re-exported here,
+# where they have always been public.
+from ccjax._colour import TINY as _TINY
+from ccjax._colour import rg as rg
+from ccjax._colour import rg_to_rgb as rg_to_rgb
 
 
 def _safe_norm(x: Float[Array, "... n"]) -> Float[Array, "..."]:
@@ -20,83 +24,79 @@ def _safe_norm(x: Float[Array, "... n"]) -> Float[Array, "..."]:
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
 
 
-def rg(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
-    """(r, g) chromaticity ``(R, G) / (R + G + B)``; black maps to (1/3, 1/3) (no information)."""
-    total = jnp.sum(rgb, axis=-1, keepdims=True)
-    valid = total > _TINY
-    return jnp.where(valid, rgb[..., :2] / jnp.where(valid, total, 1.0), 1.0 / 3.0)
-
-
-def rg_to_rgb(chromaticity: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
-    """The RGB direction ``(r, g, 1 - r - g)`` of a chromaticity (spec ch02-04 §10 item 26)."""
-    return jnp.concatenate([chromaticity, 1.0 - jnp.sum(chromaticity, axis=-1, keepdims=True)], axis=-1)
-
-
-def angular_error(estimate: Float[Array, "... 3"], truth: Float[Array, "... 3"]) -> Float[Array, "..."]:
+def angular_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
     """Angle in degrees between two illuminant RGBs (thesis measure 1).
 
     Computed as ``atan2(|a x b|, a . b)``: accurate for small angles, with a finite gradient at
     zero error. A zero vector gives 90 degrees against anything non-zero.
     """
+    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     cross = jnp.cross(estimate, truth)
     dot = jnp.sum(estimate * truth, axis=-1)
     return jnp.degrees(jnp.arctan2(_safe_norm(cross), dot))
 
 
-def rg_error(estimate: Float[Array, "... 3"], truth: Float[Array, "... 3"]) -> Float[Array, "..."]:
+def rg_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
     """Euclidean distance of (r, g) chromaticities (thesis measure 2)."""
+    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     return _safe_norm(rg(estimate) - rg(truth))
 
 
-def rgb_error(estimate: Float[Array, "... 3"], truth: Float[Array, "... 3"]) -> Float[Array, "..."]:
+def rgb_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
     """Euclidean RGB distance (thesis measure 3; meaningful for 3-D estimators)."""
+    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     return _safe_norm(estimate - truth)
 
 
-def brightness_error(estimate: Float[Array, "... 3"], truth: Float[Array, "... 3"]) -> Float[Array, "..."]:
+def brightness_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
     """Signed ``(R+G+B)`` of the estimate minus that of the truth (thesis measure 4; reported as RMS)."""
+    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     return jnp.sum(estimate, axis=-1) - jnp.sum(truth, axis=-1)
 
 
-def diagonal_map(estimate: Float[Array, "... 3"], canonical_white: Float[Array, "3"]) -> Float[Array, "... 3"]:
+def diagonal_map(estimate: Float[ArrayLike, "... 3"], canonical_white: Float[ArrayLike, "3"]) -> Float[Array, "... 3"]:
     """The diagonal map ``w_C / estimate`` taking the scene light to the canonical one (thesis §2.5)."""
+    estimate, canonical_white = jnp.asarray(estimate), jnp.asarray(canonical_white)
     positive = estimate > _TINY
     return jnp.where(positive, canonical_white / jnp.where(positive, estimate, 1.0), 0.0)
 
 
 def _masked_rms(values: Float[Array, "... P"], mask: Bool[Array, "... P"]) -> Float[Array, "..."]:
-    count = jnp.sum(mask, axis=-1)
-    mean_square = jnp.sum(jnp.where(mask, values, 0.0), axis=-1) / jnp.maximum(count, 1)
+    total = jnp.sum(jnp.where(mask, values, 0.0), axis=-1)
+    mean_square = total / jnp.maximum(jnp.sum(mask, axis=-1), 1).astype(total.dtype)
     positive = mean_square > 0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
 
 
 def mapping_errors(
-    estimate: Float[Array, "... 3"],
-    rgb: Float[Array, "... P 3"],
-    mask: Bool[Array, "... P"],
-    canonical_rgb: Float[Array, "... P 3"],
-    canonical_white: Float[Array, "3"],
+    estimate: Float[ArrayLike, "... 3"],
+    rgb: Float[ArrayLike, "... P 3"],
+    mask: Bool[ArrayLike, "... P"],
+    canonical_rgb: Float[ArrayLike, "... P 3"],
+    canonical_white: Float[ArrayLike, "3"],
 ) -> tuple[Float[Array, "..."], Float[Array, "..."]]:
     """Scene mapping RMS errors, (r,g) and RGB (thesis measures 5 and 6).
 
     The scene's surfaces are mapped to the canonical light by ``diag(w_C / estimate)`` and compared
     with the same surfaces under the canonical light; per scene the root mean square over its valid
-    surfaces of the (r,g) and of the RGB distances (spec ch02-04 §10 item 24).
+    surfaces of the (r,g) and of the RGB distances (Barnard 1999 §4.2).
 
     Returns:
         ``(rg_rms, rgb_rms)``, each with the batch shape; 0 for a scene with no valid surface.
     """
+    rgb, mask, canonical_rgb = jnp.asarray(rgb), jnp.asarray(mask), jnp.asarray(canonical_rgb)
     mapped = rgb * diagonal_map(estimate, canonical_white)[..., None, :]
     rg_sq = jnp.sum((rg(mapped) - rg(canonical_rgb)) ** 2, axis=-1)
     rgb_sq = jnp.sum((mapped - canonical_rgb) ** 2, axis=-1)
     return _masked_rms(rg_sq, mask), _masked_rms(rgb_sq, mask)
 
 
-def reproduction_angular_error(estimate: Float[Array, "... 3"], truth: Float[Array, "... 3"]) -> Float[Array, "..."]:
+def reproduction_angular_error(
+    estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]
+) -> Float[Array, "..."]:
     """Reproduction angular error (Finlayson & Zakizadeh 2014): the angle between the white
     corrected by the estimate, ``truth / estimate``, and the achromatic ``(1, 1, 1)``."""
-    corrected = truth * diagonal_map(estimate, jnp.ones(3))
+    corrected = jnp.asarray(truth) * diagonal_map(estimate, jnp.ones(3))
     return angular_error(corrected, jnp.ones_like(corrected))
 
 

@@ -1,7 +1,7 @@
 """The fixed wavelength grid and resampling onto it.
 
 Every spectrum in ccjax lives on 380–780 nm in 4 nm steps (101 samples), the sampling of the
-PR-650 spectroradiometer used throughout the thesis (Barnard 1999, §2.2 / spec ch02-04 §2.2).
+PR-650 spectroradiometer used throughout the thesis (Barnard 1999 §2.2).
 Loaders resample once, at load time:
 
 * sensor curves are **zero** outside their measured range (a sensor that was not measured there

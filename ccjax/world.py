@@ -1,11 +1,11 @@
 """Worlds: reflectances, training and test illuminant sets, canonical light and camera.
 
-The illuminant sets follow Barnard 1999 §4.4 (spec ch02-04 §5.2): (r,g) space is cut into square
+The illuminant sets follow Barnard 1999 §4.4 (Fig. 4.1): (r,g) space is cut into square
 cells (0.02 for training, 0.01 — four times denser — for testing); the priority lights (the 11 lab
 lights in the thesis world) are placed first, then the other measured lights go into cells that
 are still empty, then random convex mixtures of pairs of source spectra fill empty cells until no
 new cell is reached. Every illuminant is normalised so that the brightest channel of the camera
-response to a perfect white is 1.0 (DESIGN.md §2, binding).
+response to a perfect white is 1.0 (the thesis states its constants where that channel is 255).
 """
 
 from __future__ import annotations
@@ -16,18 +16,19 @@ from dataclasses import dataclass
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from ccjax import data
+from ccjax._colour import rg_numpy
 from ccjax.camera import Camera
-from ccjax.spectra import WAVELENGTHS, chromaticity, resample
+from ccjax.spectra import WAVELENGTHS, resample
 
 TRAIN_CELL = 0.02
 TEST_CELL = 0.01
 
 
 def normalise_illuminants(illuminants: np.ndarray, sensors: np.ndarray) -> np.ndarray:
-    """Scale each illuminant so the brightest channel of its white response is 1 (DESIGN.md §2).
+    """Scale each illuminant so the brightest channel of its white response is 1 (ccjax's scale; the thesis' is 255).
 
     Arguments:
         illuminants: ``(N, 101)`` spectral power distributions.
@@ -79,7 +80,7 @@ def build_illuminant_set(
         The normalised illuminant set, priority lights first.
     """
     sources = normalise_illuminants(sources, sensors)
-    rg = chromaticity(sources @ sensors)
+    rg = rg_numpy(sources @ sensors)
     cells = np.floor(rg / cell).astype(np.int64)
     occupied: set[tuple[int, int]] = set()
     chosen: list[np.ndarray] = []
@@ -96,7 +97,7 @@ def build_illuminant_set(
     second = rng.integers(0, len(sources), n_candidates)
     weight = rng.uniform(0.0, 1.0, n_candidates)[:, None]
     white = sources @ sensors
-    mixed_rg = chromaticity(weight * white[first] + (1 - weight) * white[second])
+    mixed_rg = rg_numpy(weight * white[first] + (1 - weight) * white[second])
     mixed_cells = np.floor(mixed_rg / cell).astype(np.int64)
     for index, key in enumerate(map(tuple, mixed_cells)):
         if key not in occupied:
@@ -108,7 +109,7 @@ def build_illuminant_set(
 
 
 class World(eqx.Module):
-    """A synthetic world (DESIGN.md §2): everything a scene or a fitted estimator needs.
+    """A synthetic world (Barnard 1999 §4.4): everything a scene or a fitted estimator needs.
 
     Attributes:
         reflectances: ``(S, 101)`` surface reflectances.
@@ -143,7 +144,25 @@ class World(eqx.Module):
     @property
     def canonical_rgb(self) -> Float[Array, "S 3"]:
         """Camera RGB of every reflectance under the canonical light."""
-        return self.camera.response(self.reflectances * self.canonical)
+        return self.responses(self.canonical)
+
+    def responses(self, illuminants: Float[ArrayLike, "*lights 101"]) -> Float[Array, "*lights S 3"]:
+        """Camera RGB of every reflectance of the world under each of a set of lights.
+
+        The image formation of Barnard 1999 §4.2 (eq. 4.1, discretised as in §2.2): surface ``s``
+        under light ``E`` gives ``rho_k = sum_lambda E(lambda) S_s(lambda) R_k(lambda)``, computed as
+        ``(reflectances * E) @ sensors``, in float32 (float64 under ``jax_enable_x64``).
+
+        Arguments:
+            illuminants: ``(..., 101)`` spectra, e.g. ``world.train_illuminants`` ``(I, 101)`` or
+                ``world.canonical`` ``(101,)``; any leading shape.
+
+        Returns:
+            ``(..., S, 3)``: for each light, the responses of the ``S`` reflectances (rows are
+            surfaces, the thesis' ``A``/``B`` matrices of chapter 5).
+        """
+        lights = jnp.asarray(illuminants)
+        return self.camera.response(self.reflectances * lights[..., None, :])
 
     def sizes(self) -> dict[str, int]:
         return {
@@ -195,7 +214,7 @@ class World(eqx.Module):
 
     @classmethod
     def default(cls, camera: str | Camera = "Canon EOS 5D Mark II", *, seed: int = 0) -> World:
-        """The default world, from embedded data only (DESIGN.md §8, binding defaults).
+        """The default world, from embedded data only (the thesis' procedure, §4.4, on redistributable data).
 
         SFU 1993 reflectances; canonical CIE D65; sources CIE A, D50, D55, D65, D75, FL2, FL7,
         FL11 first, then CIE daylight 4000–25000 K (500 K steps), blackbody 2000–10000 K (250 K

@@ -1,4 +1,4 @@
-"""SciPy oracle for the chapter-3 sensor fits, written from the spec (ch02-04 §4.3), not from ccjax.
+"""SciPy oracle for the chapter-3 sensor fits, written from Barnard 1999 §3.4 (eqs. 3.5-3.16), not from ccjax.
 
 Each fit is the stacked least-squares system of eqs. 3.5 / 3.12 / 3.16,
 

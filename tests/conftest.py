@@ -1,5 +1,5 @@
 """Shared fixtures. External-data tests skip when ../shared/data is missing, except under CI=true,
-where a missing data directory is a failure (DESIGN.md §8)."""
+where a missing data directory is a failure."""
 
 from __future__ import annotations
 

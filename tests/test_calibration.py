@@ -12,10 +12,12 @@ import calibration_oracle as oracle
 import jax
 import numpy as np
 import pytest
-from conftest import require_external_data
+from jaxtyping import TypeCheckError
 
 from ccjax import calibration as cal
+from ccjax import data
 from ccjax.calibration import experiment, files
+from ccjax.calibration import synthetic as synthetic_module
 from ccjax.cli import main as cli_main
 
 TRUE_F = dict(black=10.0, exp_rate=0.15)
@@ -23,8 +25,11 @@ TRUE_F = dict(black=10.0, exp_rate=0.15)
 
 @pytest.fixture(scope="module")
 def synthetic():
-    """The thesis experiment with an embedded camera (lights: SFU if present, else CIE)."""
-    return cal.synthetic_calibration("Canon EOS 5D Mark II", seed=3)
+    """The thesis experiment on embedded data only: a rawtoaces camera and the CIE lights, chosen
+    explicitly so the data never depend on whether ../shared/data is present."""
+    data = cal.synthetic_calibration("Canon EOS 5D Mark II", seed=3, lights="cie")
+    assert data.light_source == synthetic_module.CIE_SOURCE and not data.light_note
+    return data
 
 
 @pytest.fixture(scope="module")
@@ -121,12 +126,15 @@ def test_error_bounded_fit_matches_slsqp_x64(synthetic, linear_data):
 
 
 def test_proposed_fit_recovers_truth(synthetic):
-    spectra, raw = synthetic.usable_data()
+    _, raw = synthetic.usable_data()
     fit = cal.fit_sensors(synthetic.spectra, synthetic.raw, linearisation="exp", mask=synthetic.usable, **TRUE_F)
     assert np.all(cal.curve_error(fit.sensors, synthetic.sensors) < 0.05)
     assert float(fit.errors.rms_relative) <= 1.5 * synthetic.noise_level
     np.testing.assert_allclose(fit.linearisation.a0, 12.0, rtol=0.05)
-    np.testing.assert_allclose(fit.linearisation.a1, 4.0, rtol=0.05)
+    # a1 shows only through F's exponential term, which is small at all but the darkest usable
+    # measurements (see test_joint_linearisation_recovers_random_a0_a1): 10 % on the CIE lights
+    # (G is 5.2 % off with seed 3); the Sony/SFU experiment (slow test) holds it within 5 %.
+    np.testing.assert_allclose(fit.linearisation.a1, 4.0, rtol=0.10)
     # The fitted F maps raw values back to the noisy linear responses the generator started from.
     linear = np.asarray(fit.linearisation(raw))
     np.testing.assert_allclose(linear, synthetic.noisy_linear[synthetic.usable], rtol=0.02, atol=0.3)
@@ -152,7 +160,7 @@ def test_joint_linearisation_recovers_random_a0_a1():
     for noisy in (False, True):
         noise = {} if noisy else {"noise_gain": 0.0, "noise_floor": 0.0}
         sets = [
-            cal.synthetic_calibration("Canon EOS 5D Mark II", seed=100 + i, a0=a0, a1=a1, **noise)
+            cal.synthetic_calibration("Canon EOS 5D Mark II", seed=100 + i, a0=a0, a1=a1, lights="cie", **noise)
             for i, (a0, a1) in enumerate(draws)
         ]
         fits = cal.fit_sensors_batch(
@@ -176,7 +184,7 @@ def test_joint_linearisation_recovers_random_a0_a1():
 
 
 def test_batch_equals_single_fits(synthetic):
-    other = cal.synthetic_calibration("Nikon D5100", seed=4)
+    other = cal.synthetic_calibration("Nikon D5100", seed=4, lights="cie")
     batch = cal.fit_sensors_batch(
         np.stack([synthetic.spectra, other.spectra]),
         np.stack([synthetic.raw, other.raw]),
@@ -184,8 +192,8 @@ def test_batch_equals_single_fits(synthetic):
         linearisation="exp",
         **TRUE_F,
     )
-    for b, data in enumerate((synthetic, other)):
-        single = cal.fit_sensors(data.spectra, data.raw, linearisation="exp", mask=data.usable, **TRUE_F)
+    for b, data_set in enumerate((synthetic, other)):
+        single = cal.fit_sensors(data_set.spectra, data_set.raw, linearisation="exp", mask=data_set.usable, **TRUE_F)
         # Same problem, same algorithm; float32 Gram matrices (condition ~1e4) agree to ~1e-3.
         assert _relative(batch.sensors[b], single.sensors) < 5e-3
         np.testing.assert_allclose(np.asarray(batch.a0[b]), single.linearisation.a0, rtol=2e-3)
@@ -223,10 +231,12 @@ def test_tiny_subsets_stay_finite(synthetic):
 
 
 @pytest.mark.slow
+@pytest.mark.external_data
 def test_sony_experiment_acceptance():
-    """The issue's acceptance numbers on the thesis' camera (also printed by ccjax calibrate --synthetic)."""
-    require_external_data()
-    report = experiment.synthetic_experiment("Sony DXC-930")
+    """The acceptance numbers on the thesis' camera and lights (as ``ccjax calibrate --synthetic``
+    prints them)."""
+    report = experiment.synthetic_experiment("Sony DXC-930", lights="sfu")
+    assert report.data.light_source == synthetic_module.SFU_SOURCE
     c = report.checks()
     assert 600 <= report.data.n_usable <= 624
     assert c["curve_error_max"] < 0.05
@@ -235,6 +245,20 @@ def test_sony_experiment_acceptance():
     assert c["curve_error_max"] < min(c["curve_error_pseudo_inverse_min"], c["curve_error_pseudo_inverse_positive_min"])
     assert c["rg_vs_truth_joint"] < c["rg_vs_truth_ignoring_F"]
     assert c["a0_relative_error_max"] < 0.05 and c["a1_relative_error_max"] < 0.05
+
+
+def test_light_set_is_never_switched_silently(tmp_path):
+    """Without the SFU illuminants (an empty data directory), "auto" uses the CIE lights and says
+    why in the data and the report text; "sfu" refuses; "cie" is the explicit embedded choice."""
+    names, values, source, note = synthetic_module.calibration_lights(str(tmp_path), "auto")
+    assert names == synthetic_module.CIE_LIGHTS and values.shape == (26, 101)
+    assert source == synthetic_module.CIE_SOURCE and "SFU illuminants were not found" in note
+    with pytest.raises(data.DataNotFoundError, match="sfu_illuminants"):
+        synthetic_module.calibration_lights(str(tmp_path), "sfu")
+    explicit = synthetic_module.calibration_lights(str(tmp_path), "cie")
+    assert explicit[3] == "" and np.array_equal(explicit[1], values)
+    with pytest.raises((ValueError, TypeCheckError), match="lights"):
+        synthetic_module.calibration_lights(str(tmp_path), "daylight")
 
 
 def test_synthetic_generator_matches_its_model(synthetic):
@@ -334,13 +358,15 @@ def test_cli_rejects_both_or_neither(capsys):
 
 def test_fit_sensors_validates_arguments(synthetic):
     spectra, raw = synthetic.usable_data()
-    with pytest.raises(ValueError, match="spectra"):
+    # A wrong shape or an unknown literal is rejected by the annotation under the suite's runtime
+    # checks (TypeCheckError), by the boundary validation otherwise (ValueError).
+    with pytest.raises((ValueError, TypeCheckError), match="spectra"):
         cal.fit_sensors(spectra[:, :100], raw)
     with pytest.raises(ValueError, match="responses"):
         cal.fit_sensors(spectra, np.where(np.arange(len(raw))[:, None] == 3, np.nan, raw))
     with pytest.raises(ValueError, match="smoothness"):
         cal.fit_sensors(spectra, raw, smoothness=-1.0)
-    with pytest.raises(ValueError, match="error"):
+    with pytest.raises((ValueError, TypeCheckError), match="error"):
         cal.fit_sensors(spectra, raw, error="squared")
     with pytest.raises(ValueError, match="exp_rate"):
         cal.fit_sensors(spectra, raw, exp_rate=0.1)

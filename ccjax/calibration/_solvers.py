@@ -1,4 +1,4 @@
-"""The quadratic programmes behind every chapter-3 fit, solved with jaxopt (DESIGN.md §6).
+"""The quadratic programmes behind every chapter-3 fit, solved with jaxopt (Barnard 1999 §3.4).
 
 Each fit of Barnard 1999 §3.4 is a least-squares problem with linear constraints, i.e. a convex
 quadratic programme in the stacked unknowns ``x`` (sensor samples, then linearisation parameters):
@@ -29,7 +29,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 with warnings.catch_warnings():
     # jaxopt announces on import that it is no longer maintained; the project uses it on purpose
-    # (DESIGN.md §6), so silence exactly that warning and nothing else.
+    # (the project's choice of QP library), so silence exactly that warning and nothing else.
     warnings.filterwarnings("ignore", category=DeprecationWarning, module="jaxopt")
     import jaxopt
 
@@ -225,17 +225,17 @@ def solve_box_qp(
     return Solution(x=y * d, kkt_residual=residual, iterations=iterations, converged=residual <= tol)
 
 
-def _polish_qp(Qs, cs, A, l, u, x, z, y):
+def _polish_qp(Qs, cs, A, lower, upper, x, z, y):
     """OSQP-style solution polishing (Stellato et al. 2020, §5.2): take the constraints ADMM left at a
     bound with a non-zero dual as equalities and solve the equality-constrained QP's KKT system
     exactly. Returns the polished point and whether it is feasible with correctly signed duals."""
     n = x.shape[0]
     m = A.shape[0]
     dtype = x.dtype
-    at_lower = (z <= l) & (y < 0)
-    at_upper = (z >= u) & (y > 0) & ~at_lower
+    at_lower = (z <= lower) & (y < 0)
+    at_upper = (z >= upper) & (y > 0) & ~at_lower
     active = (at_lower | at_upper).astype(dtype)
-    target = jnp.where(at_lower, l, jnp.where(at_upper, u, 0.0))
+    target = jnp.where(at_lower, lower, jnp.where(at_upper, upper, 0.0))
     reg = 1e3 * jnp.finfo(dtype).eps
     K = jnp.block(
         [
@@ -254,11 +254,11 @@ def _polish_qp(Qs, cs, A, l, u, x, z, y):
     Ax = A @ xp
     scale = (
         1.0
-        + jnp.max(jnp.abs(jnp.where(jnp.isfinite(l), l, 0.0)))
-        + jnp.max(jnp.abs(jnp.where(jnp.isfinite(u), u, 0.0)))
+        + jnp.max(jnp.abs(jnp.where(jnp.isfinite(lower), lower, 0.0)))
+        + jnp.max(jnp.abs(jnp.where(jnp.isfinite(upper), upper, 0.0)))
     )
     tol = jnp.sqrt(jnp.finfo(dtype).eps) * scale
-    feasible = jnp.all((Ax >= l - tol) & (Ax <= u + tol))
+    feasible = jnp.all((Ax >= lower - tol) & (Ax <= upper + tol))
     # Stationarity Qx - c + Aᵀnu = 0 with nu <= 0 on lower-active and >= 0 on upper-active rows.
     signs = jnp.all(jnp.where(at_lower, nu <= tol, True) & jnp.where(at_upper, nu >= -tol, True))
     ok = feasible & signs & jnp.all(jnp.isfinite(xp)) & (m > 0)
@@ -293,8 +293,8 @@ def solve_qp(
     Gs = Gs * row_scale[:, None]
     n = Qs.shape[0]
     A = jnp.concatenate([jnp.eye(n, dtype=Qs.dtype), Gs], axis=0)
-    l = jnp.concatenate([lo, g_lower * row_scale])
-    u = jnp.concatenate([hi, g_upper * row_scale])
+    row_lower = jnp.concatenate([lo, g_lower * row_scale])
+    row_upper = jnp.concatenate([hi, g_upper * row_scale])
     # ADMM reaches ~1e-9 (x64) / ~1e-5 (float32) primal-dual residuals in a few thousand steps.
     solver = jaxopt.BoxOSQP(
         tol=1e-9 if jnp.finfo(Qs.dtype).bits == 64 else 1e-5,
@@ -304,9 +304,9 @@ def solve_qp(
         implicit_diff=False,
         jit=True,
     )
-    result = solver.run(params_obj=(Qs, -cs), params_eq=A, params_ineq=(l, u))
+    result = solver.run(params_obj=(Qs, -cs), params_eq=A, params_ineq=(row_lower, row_upper))
     x, z = result.params.primal
-    polished, ok = _polish_qp(Qs, cs, A, l, u, x, z, result.params.dual_eq)
+    polished, ok = _polish_qp(Qs, cs, A, row_lower, row_upper, x, z, result.params.dual_eq)
     y = jnp.where(ok, polished, x)
     residual = _relative_residual(Qs, cs, y, lo, hi)  # bound part only; the polish checks the rest
     return Solution(

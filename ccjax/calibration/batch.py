@@ -3,7 +3,7 @@
 Every fit here is :func:`ccjax.calibration.fitting.fit_sensors`' kernel under ``jax.vmap``: data
 sets of the same shape (pad with ``mask=False`` rows), or one data set with many row masks (the
 robustness experiment of §3.6 / Fig. 3.6, held-out evaluation, K-fold cross-validation of the
-smoothness, spec ch02-04 §10 item 32).
+smoothness, which Barnard 1999 §3.4 sets by hand).
 """
 
 from __future__ import annotations
@@ -15,20 +15,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
-from ccjax.calibration.fitting import (
-    DEFAULT_SMOOTHNESS,
-    FitErrors,
-    SensorFit,
-    _check_data,
-    _fit_data_set,
-    _Options,
-    _plan,
-    apply_linearisation,
-    fit_errors,
-    fit_sensors,
-)
+from ccjax.calibration._kernel import FitOptions, fit_data_set
+from ccjax.calibration._plan import DEFAULT_SMOOTHNESS, check_data, plan_fit
+from ccjax.calibration.errors import FitErrors, fit_errors
+from ccjax.calibration.fitting import SensorFit, fit_sensors
+from ccjax.calibration.linearisation import apply_linearisation
 from ccjax.spectra import N_WAVELENGTHS
 
 
@@ -86,15 +79,15 @@ def _options_for(**options):
         maxiter=None,
     )
     full.update(options)
-    return _plan(**full)
+    return plan_fit(**full)
 
 
 @functools.partial(jax.jit, static_argnames=("solver", "search"))
-def _fit_many(spectra, raw, masks, options: _Options, smoothness, solver: str, search: bool):
+def _fit_many(spectra, raw, masks, options: FitOptions, smoothness, solver: str, search: bool):
     """Fits for a batch: every argument but ``options`` has a leading batch axis."""
 
     def one(spectra, raw, mask, lam):
-        fits, rates = _fit_data_set(spectra, raw, mask, options._replace(smoothness=lam), solver, search)
+        fits, rates = fit_data_set(spectra, raw, mask, options._replace(smoothness=lam), solver, search)
         sensors = fits.sensor.T
         return (
             sensors,
@@ -131,11 +124,11 @@ def _run_chunks(spectra, raw, masks, smoothness, plan, chunk_size: int):
             plan.solver,
             plan.search,
         )
-        chunks.append(jax.tree_util.tree_map(lambda leaf: leaf[: index.size], out))
+        chunks.append(jax.tree_util.tree_map(lambda leaf, size=index.size: leaf[:size], out))
     return jax.tree_util.tree_map(lambda *leaves: jnp.concatenate(leaves), *chunks)
 
 
-def _batch_fit(outputs, options: _Options, linearised: bool) -> BatchFit:
+def _batch_fit(outputs, options: FitOptions, linearised: bool) -> BatchFit:
     sensors, a0, a1, rates, converged, errors = outputs
     b = sensors.shape[0]
     return BatchFit(
@@ -150,10 +143,10 @@ def _batch_fit(outputs, options: _Options, linearised: bool) -> BatchFit:
 
 
 def fit_sensors_batch(
-    spectra: Float[np.ndarray, "B M 101"],
-    responses: Float[np.ndarray, "B M 3"],
+    spectra: Float[ArrayLike, "B M 101"],
+    responses: Float[ArrayLike, "B M 3"],
     *,
-    mask: Bool[np.ndarray, "B M"] | None = None,
+    mask: Bool[ArrayLike, "B M"] | None = None,
     chunk_size: int | None = None,
     **options,
 ) -> BatchFit:
@@ -180,7 +173,7 @@ def fit_sensors_batch(
     if mask.shape != spectra.shape[:2]:
         raise ValueError(f"mask: expected shape {spectra.shape[:2]}, got {mask.shape}")
     for b in range(spectra.shape[0]):
-        _check_data(spectra[b], responses[b], mask[b])
+        check_data(spectra[b], responses[b], mask[b])
     plan = _options_for(**options)
     smoothness = np.full(spectra.shape[0], float(plan.options.smoothness))
     outputs = _run_chunks(spectra, responses, mask, smoothness, plan, chunk_size or DEFAULT_CHUNK)
@@ -188,9 +181,9 @@ def fit_sensors_batch(
 
 
 def fit_subsets(
-    spectra: Float[np.ndarray, "M 101"],
-    responses: Float[np.ndarray, "M 3"],
-    masks: Bool[np.ndarray, "B M"],
+    spectra: Float[ArrayLike, "M 101"],
+    responses: Float[ArrayLike, "M 3"],
+    masks: Bool[ArrayLike, "B M"],
     *,
     smoothness=None,
     chunk_size: int = DEFAULT_CHUNK,
@@ -203,7 +196,7 @@ def fit_subsets(
         smoothness: a scalar, or ``(B,)`` one lambda per fit (cross-validation grids).
         **options: as :func:`ccjax.calibration.fit_sensors`.
     """
-    spectra, responses = _check_data(spectra, responses)
+    spectra, responses = check_data(spectra, responses)
     masks = np.asarray(masks, bool)
     if masks.ndim != 2 or masks.shape[1] != spectra.shape[0]:
         raise ValueError(f"masks: expected shape (B, {spectra.shape[0]}), got {masks.shape}")
@@ -228,7 +221,7 @@ def evaluate_batch(fits: BatchFit, spectra, responses, mask=None, *, linearised:
         linearised: True when ``responses`` are raw and each fit's own F is to be applied (joint
             fits); False when they are already linear.
     """
-    spectra, responses = _check_data(spectra, responses, mask)
+    spectra, responses = check_data(spectra, responses, mask)
     dtype = fits.sensors.dtype
     spectra = jnp.asarray(spectra, dtype)
     raw = jnp.broadcast_to(jnp.asarray(responses, dtype), (fits.sensors.shape[0],) + responses.shape)
@@ -274,8 +267,8 @@ DEFAULT_CV_GRID = tuple(float(v) for v in np.geomspace(0.01, 3.0, 11))
 
 
 def fit_sensors_cv(
-    spectra: Float[np.ndarray, "M 101"],
-    responses: Float[np.ndarray, "M 3"],
+    spectra: Float[ArrayLike, "M 101"],
+    responses: Float[ArrayLike, "M 3"],
     *,
     smoothness=DEFAULT_CV_GRID,
     folds: int = 5,
@@ -284,7 +277,7 @@ def fit_sensors_cv(
     name: str = "fitted",
     **options,
 ) -> tuple[SensorFit, CrossValidation]:
-    """Choose lambda by K-fold cross-validation, then fit all data with it (spec §10 item 32).
+    """Choose lambda by K-fold cross-validation, then fit all data with it (Barnard 1999 §3.4 chose it by hand).
 
     Each candidate lambda is fitted on K-1 folds and scored by the RMS relative error on the held-out
     fold (responses linearised by that fit's own F for joint fits), mirroring the thesis' use of
@@ -301,7 +294,7 @@ def fit_sensors_cv(
         ``(fit, cv)``: the fit of all (masked) data with the best lambda, and the
         :class:`CrossValidation` table.
     """
-    spectra, responses = _check_data(spectra, responses, mask)
+    spectra, responses = check_data(spectra, responses, mask)
     grid = np.asarray(smoothness, dtype=np.float64).ravel()
     if grid.size == 0 or not np.all(np.isfinite(grid)) or np.any(grid < 0):
         raise ValueError("smoothness: expected one or more finite values >= 0")

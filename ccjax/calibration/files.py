@@ -99,7 +99,7 @@ def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -
         )
     table = np.asarray(rows, dtype=np.float64)
     spectra, responses = table[:, :N_WAVELENGTHS], table[:, N_WAVELENGTHS:]
-    for k, name in enumerate("RGB"):
+    for k in range(3):
         if np.all(responses[:, k] == 0):
             raise CalibrationFileError(f"{path}: column {_column_name(N_WAVELENGTHS + k)}: every response is 0")
     empty = np.flatnonzero(spectra.sum(axis=1) == 0)
@@ -158,7 +158,8 @@ def write_sensors_csv(path: str | os.PathLike, sensors: np.ndarray, linearisatio
     with open(path, "w", newline="") as f:
         if linearisation is not None:
             f.write(
-                f"# F(x) = x - a0 - a1 exp(-C (x - b)) per channel: a0={list(linearisation.a0)} a1={list(linearisation.a1)} "
+                "# F(x) = x - a0 - a1 exp(-C (x - b)) per channel: "
+                f"a0={list(linearisation.a0)} a1={list(linearisation.a1)} "
                 f"C={list(linearisation.exp_rate)} b={list(linearisation.black)}\n"
             )
         writer = csv.writer(f)

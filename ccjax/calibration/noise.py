@@ -11,7 +11,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 
 class NoiseModel(eqx.Module):
@@ -60,7 +60,7 @@ def _fit_line(mean: np.ndarray, variance: np.ndarray, iterations: int = 4) -> np
     return coef
 
 
-def fit_noise_model(samples: Float[np.ndarray, "R N C"]) -> NoiseModel:
+def fit_noise_model(samples: Float[ArrayLike, "R N *C"]) -> NoiseModel:
     """Fit ``variance = a * mean + floor`` from repeated measurements (§3.4, Fig. 3.1).
 
     Arguments:

@@ -9,19 +9,22 @@ removed, leaving about 612 of the 624 as in the thesis. Each light gets its own 
 spread of brightness factors in a seeded order), which is what makes a few measurements clip and
 spreads the responses over the camera's range.
 
-Lights: the 11 SFU lab lights plus 15 other SFU lights when the external data is present
-(:data:`SFU_OTHER_LIGHTS`), else 26 CIE lights (:data:`CIE_LIGHTS`).
+Lights (:data:`LightChoice`): the 11 SFU lab lights plus 15 other SFU lights
+(:data:`SFU_OTHER_LIGHTS`, external data), or 26 CIE lights (:data:`CIE_LIGHTS`, embedded); the
+default ``"auto"`` takes SFU when the external data are found and records in the result when it
+did not.
 """
 
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from ccjax import data
-from ccjax.calibration.fitting import Linearisation, invert_linearisation
+from ccjax.calibration.linearisation import Linearisation, invert_linearisation
 from ccjax.camera import Camera
 from ccjax.spectra import N_WAVELENGTHS, resample
 from ccjax.world import normalise_illuminants
@@ -100,24 +103,53 @@ def colorchecker() -> tuple[tuple[str, ...], np.ndarray]:
     return names, values
 
 
-@functools.cache
-def calibration_lights(data_dir=None) -> tuple[tuple[str, ...], np.ndarray, str]:
-    """The 26 lights of the synthetic experiment: names, ``(26, 101)`` spectra, and the source."""
-    try:
-        sfu = data.sfu_illuminants(data_dir)
-    except data.DataNotFoundError:
-        import colour
+LightChoice = Literal["auto", "sfu", "cie"]
+"""Which 26 lights the synthetic experiment uses: ``"sfu"`` the thesis' (external data), ``"cie"``
+the colour-science ones (embedded), ``"auto"`` SFU when the external data are found, else CIE (and
+the report says so)."""
 
-        values = np.stack(
-            [
-                resample(colour.SDS_ILLUMINANTS[n].wavelengths, colour.SDS_ILLUMINANTS[n].values, kind="spectrum")
-                for n in CIE_LIGHTS
-            ]
-        )
-        return CIE_LIGHTS, values, "CIE (colour-science)"
-    names = tuple(data.SFU_LAB_LIGHTS.values()) + SFU_OTHER_LIGHTS
-    values = np.stack([sfu.values[sfu.names.index(n)] for n in names])
-    return names, values, "SFU (11 lab lights + 15 others)"
+SFU_SOURCE = "SFU (11 lab lights + 15 others)"
+CIE_SOURCE = "CIE (colour-science)"
+
+
+@functools.cache
+def calibration_lights(data_dir=None, lights: LightChoice = "auto") -> tuple[tuple[str, ...], np.ndarray, str, str]:
+    """The 26 lights of the synthetic experiment (Barnard 1999 §3.5 used 26 lights).
+
+    Arguments:
+        data_dir: external data directory (see :func:`ccjax.data.find_data_file`).
+        lights: ``"sfu"``, ``"cie"`` or ``"auto"`` (see :data:`LightChoice`).
+
+    Returns:
+        ``(names, spectra (26, 101), source, note)``: ``source`` names the set; ``note`` is empty
+        unless ``"auto"`` fell back to the CIE lights, when it says why.
+
+    Raises:
+        ccjax.data.DataNotFoundError: ``lights="sfu"`` and the SFU illuminants are not found.
+    """
+    if lights not in ("auto", "sfu", "cie"):
+        raise ValueError(f"lights: expected 'auto', 'sfu' or 'cie', got {lights!r}")
+    note = ""
+    if lights != "cie":
+        try:
+            sfu = data.sfu_illuminants(data_dir)
+        except data.DataNotFoundError as error:
+            if lights == "sfu":
+                raise
+            note = f"the SFU illuminants were not found, so the CIE lights are used ({error})"
+        else:
+            names = tuple(data.SFU_LAB_LIGHTS.values()) + SFU_OTHER_LIGHTS
+            values = np.stack([sfu.values[sfu.names.index(n)] for n in names])
+            return names, values, SFU_SOURCE, note
+    import colour
+
+    values = np.stack(
+        [
+            resample(colour.SDS_ILLUMINANTS[n].wavelengths, colour.SDS_ILLUMINANTS[n].values, kind="spectrum")
+            for n in CIE_LIGHTS
+        ]
+    )
+    return CIE_LIGHTS, values, CIE_SOURCE, note
 
 
 @dataclass(frozen=True)
@@ -137,6 +169,8 @@ class SyntheticCalibration:
         exposures: ``(26,)`` brightness factor per light.
         light_source: which light set was used.
         camera: name of the true camera.
+        light_note: empty, or why the light set is not the one asked for (``lights="auto"``
+            without the SFU illuminants).
     """
 
     spectra: np.ndarray
@@ -155,6 +189,7 @@ class SyntheticCalibration:
     exposures: np.ndarray
     light_source: str
     camera: str
+    light_note: str = ""
 
     @property
     def n_usable(self) -> int:
@@ -196,8 +231,9 @@ def synthetic_calibration(
     exp_rate: float = DEFAULT_LINEARISATION["exp_rate"],
     exposures: tuple[float, float] = EXPOSURES,
     data_dir=None,
+    lights: LightChoice = "auto",
 ) -> SyntheticCalibration:
-    """Generate the thesis' calibration experiment for a known camera (§3.5; spec ch02-04 §4.4).
+    """Generate the thesis' calibration experiment for a known camera (Barnard 1999 §3.5).
 
     Arguments:
         camera: the truth: a name (``"Sony DXC-930"`` needs the external data), a
@@ -208,6 +244,8 @@ def synthetic_calibration(
             ``a1=0`` (and ``a0=0``) make the camera linear.
         exposures: range of the per-light brightness factors.
         data_dir: external data directory (SFU lights; Sony curves).
+        lights: the light set (:data:`LightChoice`); the result records which one was used
+            (``light_source``) and, for ``"auto"`` without the SFU data, why (``light_note``).
 
     Returns:
         A :class:`SyntheticCalibration` with every measurement and the ``usable`` mask.
@@ -219,9 +257,9 @@ def synthetic_calibration(
         raise ValueError(f"exposures: expected 0 < low <= high, got {exposures!r}")
     sensors, camera_name = _camera_sensors(camera, data_dir)
     patches, reflectances = colorchecker()
-    lights, light_spectra, source = calibration_lights(data_dir)
+    lights_used, light_spectra, source, note = calibration_lights(data_dir, lights)
     rng = np.random.default_rng(seed)
-    exposure = np.linspace(exposures[0], exposures[1], len(lights))[rng.permutation(len(lights))]
+    exposure = np.linspace(exposures[0], exposures[1], len(lights_used))[rng.permutation(len(lights_used))]
     light_spectra = normalise_illuminants(light_spectra, sensors) * exposure[:, None]
     spectra = (light_spectra[:, None, :] * reflectances[None, :, :]).reshape(-1, N_WAVELENGTHS)
     unit = spectra @ sensors  # unit scale: white under an unexposed light has max channel 1
@@ -241,13 +279,14 @@ def synthetic_calibration(
         linearisation=truth,
         noise_gain=float(noise_gain),
         noise_floor=float(noise_floor),
-        lights=tuple(lights),
+        lights=tuple(lights_used),
         patches=patches,
-        light_index=np.repeat(np.arange(len(lights)), len(patches)),
-        patch_index=np.tile(np.arange(len(patches)), len(lights)),
+        light_index=np.repeat(np.arange(len(lights_used)), len(patches)),
+        patch_index=np.tile(np.arange(len(patches)), len(lights_used)),
         exposures=exposure,
         light_source=source,
         camera=camera_name,
+        light_note=note,
     )
 
 
@@ -266,6 +305,7 @@ __all__ = [
     "DEFAULT_NOISE_FLOOR",
     "DEFAULT_NOISE_GAIN",
     "SFU_OTHER_LIGHTS",
+    "LightChoice",
     "SyntheticCalibration",
     "calibration_lights",
     "colorchecker",

@@ -1,4 +1,4 @@
-"""Embedded data and loaders for the external data directory (DESIGN.md §8).
+"""Embedded data and loaders for the external data directory (the data of Barnard 1999 §3.5, §4.4).
 
 Embedded (redistributable): the SFU 1993 reflectances (MIT) and the rawtoaces camera curves
 (Apache-2.0); see ``ATTRIBUTION.md`` beside this file. Illuminants of the default world come from

@@ -1,8 +1,8 @@
 """Rebuild the embedded data files of ``ccjax/data`` from a ``shared/data``-style directory.
 
 Run once by maintainers (``python -m ccjax.data.build_embedded ../shared/data``); the package
-itself only reads the ``.npz`` files written here. Only redistributable sources are embedded
-(DESIGN.md §8): the SFU 1993 reflectances (MIT, gfxdisp packaging) and the rawtoaces camera
+itself only reads the ``.npz`` files written here. Only redistributable sources are embedded (they
+ship in the wheel): the SFU 1993 reflectances (MIT, gfxdisp packaging) and the rawtoaces camera
 curves (Apache-2.0). Values are stored as published (no resampling); loaders resample once.
 """
 

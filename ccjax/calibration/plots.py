@@ -1,0 +1,67 @@
+"""The plots behind ``ccjax calibrate``: fitted sensor curves (Barnard 1999 Figs. 3.3-3.5) and
+the robustness curves (Fig. 3.6)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ccjax.calibration.robustness import Robustness
+from ccjax.calibration.table import JOINT, JOINT_RANGE, PSEUDO_INVERSE, PSEUDO_INVERSE_POSITIVE, CalibrationTable
+from ccjax.spectra import WAVELENGTHS
+
+
+def plot_sensors(table: CalibrationTable, path: str, *, truth: np.ndarray | None = None, title: str = "") -> None:
+    """Fitted curves (Figs. 3.3–3.5): the proposed joint fit, the pseudo-inverse and the
+    pseudo-inverse with positivity, each against the truth when it is known."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = (JOINT, PSEUDO_INVERSE_POSITIVE, PSEUDO_INVERSE)
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
+    colours = ("tab:red", "tab:green", "tab:blue")
+    for ax, label in zip(axes, panels):
+        sensors = np.asarray(table.row(label).fit.sensors, dtype=np.float64)
+        for k, colour in enumerate(colours):
+            ax.plot(WAVELENGTHS, sensors[:, k], color=colour, lw=1.4, label=f"fitted {'RGB'[k]}")
+            if truth is not None:
+                ax.plot(WAVELENGTHS, truth[:, k], color=colour, lw=1.0, ls="--", label=f"true {'RGB'[k]}")
+        if truth is not None and label != JOINT:
+            top = 1.3 * truth.max()
+            low = min(-0.3 * truth.max(), sensors.min())
+            ax.set_ylim(max(low, -3 * truth.max()), max(top, min(sensors.max(), 4 * truth.max())))
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_title(label, fontsize=10)
+        ax.set_xlabel("wavelength (nm)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, ncol=2)
+    fig.suptitle(title or "fitted sensor curves")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_robustness(result: Robustness, path: str, *, title: str = "") -> None:
+    """Fig. 3.6: log of RMS relative error against log of the number of measurements fitted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    for label, m in result.mean().items():
+        style = dict(lw=2.5, color="k" if label == JOINT else "0.35") if label in (JOINT, JOINT_RANGE) else dict(lw=1.3)
+        ax.plot(result.sizes, 100 * m, marker="o", label=label, **style)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xticks(result.sizes, [str(n) for n in result.sizes])
+    ax.minorticks_off()
+    ax.set_xlabel("measurements fitted (log)")
+    ax.set_ylabel("RMS relative error on all measurements, % (log)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title(title or f"robustness: {result.n_subsets} random subsets per size")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
