@@ -22,9 +22,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ccjax.correction import correct
 from ccjax.estimators.simple import GreyWorld
 from ccjax.estimators.spatial import GreyEdge
-from ccjax.images import correct, estimate_pixels
+from ccjax.preprocessing import estimate_pixels
 
 SATURATION = 0.9  # OpenCV GrayworldWB's default threshold, as a fraction of full scale
 
@@ -105,15 +106,12 @@ def main() -> None:
 
     megapixels = side * side / 1e6
     print(f"grey world estimate + correction, {side}x{side} ({megapixels:.2f} MP) uint16:")
-    print(
-        f"  single image : ccjax {1e3 * ours_1:8.2f} ms   OpenCV {1e3 * theirs_1:8.2f} ms   ratio {ours_1 / theirs_1:5.2f}"
-    )
-    print(
-        f"  batch of {args.batch:<3} : ccjax {1e3 * ours_b:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_b / theirs_b:5.2f}   (per image; one compiled lax.map call)"
-    )
-    print(
-        f"  batch of {args.batch:<3} : ccjax {1e3 * ours_loop:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_loop / theirs_b:5.2f}   (per image; loop of the compiled single-image call)"
-    )
+    single_line = f"ccjax {1e3 * ours_1:8.2f} ms   OpenCV {1e3 * theirs_1:8.2f} ms   ratio {ours_1 / theirs_1:5.2f}"
+    print(f"  single image : {single_line}")
+    batch_line = f"ccjax {1e3 * ours_b:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_b / theirs_b:5.2f}"
+    print(f"  batch of {args.batch:<3} : {batch_line}   (per image; one compiled lax.map call)")
+    loop_line = f"ccjax {1e3 * ours_loop:8.2f} ms   OpenCV {1e3 * theirs_b:8.2f} ms   ratio {ours_loop / theirs_b:5.2f}"
+    print(f"  batch of {args.batch:<3} : {loop_line}   (per image; loop of the compiled single-image call)")
     print(f"  mean corrected colour, ccjax vs OpenCV: {angle:.3f} degrees apart")
 
     edge = GreyEdge(order=1, p=6.0, sigma=2.0, fallback=jnp.ones(3))

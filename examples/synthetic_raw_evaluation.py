@@ -20,7 +20,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from ccjax import cli, images, scenes
+from ccjax import cli, io, scenes
 from ccjax.world import World
 
 DEFAULT_METHODS = ("GW", "ND-ECRULE-SCWIA-12", "RGB-C-by-C-MMSE", "C-by-C-MMSE", "shades-of-grey-p6", "grey-edge-1-6-2")
@@ -50,7 +50,7 @@ def main() -> None:
     )
     with tempfile.TemporaryDirectory() as scratch:
         folder = Path(args.out or scratch) / "images"
-        truth = images.write_dataset(folder, batch.image, batch.illuminant)
+        truth = io.write_dataset(folder, batch.image, batch.illuminant)
         report = Path(scratch) / "evaluate.json"
         print(f"wrote {args.images} images of {args.size}x{args.size} ({args.camera}) to {folder}")
         status = cli.main(

@@ -1,0 +1,69 @@
+"""Correcting an image to the canonical light (Barnard 1999 §2.5).
+
+A diagonal map ``diag(w_C / e)`` takes the estimated light ``e`` to the canonical white ``w_C``;
+with a sharpening transform ``T`` (rows: sharpened sensors as combinations of R, G, B) the map is
+the sharpened diagonal ``T^-1 diag(T w_C / T e) T``. Both are scaled to keep the brightness
+R+G+B of a grey, because chromaticity methods leave the magnitude of ``e`` arbitrary.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float
+
+
+@jax.jit
+def correction_map(
+    illuminant: Float[Array, "3"], canonical_white: Float[Array, "3"], sharpening: Float[Array, "3 3"] | None = None
+) -> Float[Array, "3 3"]:
+    """The 3x3 map taking the estimated light to the canonical one (§2.5).
+
+    Arguments:
+        illuminant: ``e``, camera RGB of white under the estimated light.
+        canonical_white: ``w_C``, camera RGB of white under the canonical light.
+        sharpening: optional ``T``; None for the plain diagonal map.
+
+    Returns:
+        ``M`` with ``corrected = M @ rgb``, scaled so that a grey keeps its R+G+B.
+    """
+    transform = jnp.eye(3, dtype=illuminant.dtype) if sharpening is None else jnp.asarray(sharpening, illuminant.dtype)
+    target, source = transform @ canonical_white, transform @ illuminant
+    diagonal = target / jnp.where(jnp.abs(source) > 1e-12, source, 1e-12)
+    matrix = jnp.linalg.solve(transform, diagonal[:, None] * transform)
+    grey = illuminant / jnp.maximum(jnp.sum(illuminant), 1e-12)
+    return matrix / jnp.maximum(jnp.sum(matrix @ grey), 1e-12)
+
+
+@jax.jit
+def diagonal_gains(illuminant: Float[Array, "3"], canonical_white: Float[Array, "3"]) -> Float[Array, "3"]:
+    """The diagonal of :func:`correction_map` without sharpening (per-channel gains ``w_C / e``,
+    scaled so that a grey keeps its R+G+B)."""
+    gains = canonical_white / jnp.where(illuminant > 1e-12, illuminant, 1e-12)
+    grey = illuminant / jnp.maximum(jnp.sum(illuminant), 1e-12)
+    return gains / jnp.maximum(jnp.sum(gains * grey), 1e-12)
+
+
+@jax.jit
+def apply_map(rgb: Float[Array, "... 3"], matrix: Float[Array, "3 3"]) -> Float[Array, "... 3"]:
+    """Apply a 3x3 colour map to every pixel (``matrix @ pixel``)."""
+    return jnp.einsum("...c,kc->...k", rgb, matrix)
+
+
+def correct(
+    rgb: ArrayLike, illuminant: ArrayLike, canonical_white: ArrayLike, sharpening: ArrayLike | None = None
+) -> Float[Array, "... 3"]:
+    """Map an image from the estimated light to the canonical light (jit-able).
+
+    Arguments:
+        rgb: ``(..., 3)`` linear camera RGB.
+        illuminant, canonical_white, sharpening: see :func:`correction_map`.
+
+    Returns:
+        The corrected pixels; a diagonal map is applied as per-channel gains, a sharpened one as a
+        3x3 matrix.
+    """
+    rgb, illuminant, canonical_white = jnp.asarray(rgb), jnp.asarray(illuminant), jnp.asarray(canonical_white)
+    if sharpening is None:
+        return rgb * diagonal_gains(illuminant, canonical_white)
+    return apply_map(rgb, correction_map(illuminant, canonical_white, sharpening))

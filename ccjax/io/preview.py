@@ -1,0 +1,84 @@
+"""8-bit sRGB previews of linear camera images.
+
+The camera-to-sRGB matrix is fitted by least squares over the world's reflectances (CIE 1931 2°
+observer, D65) with the canonical white pinned to sRGB white, so a corrected image (Barnard 1999
+§2.5) shows greys as grey.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from jaxtyping import ArrayLike
+
+from ccjax._cache import cached_arrays, content_key
+from ccjax.io.png import write_png
+
+_XYZ_TO_SRGB = np.array(
+    [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
+)
+PREVIEW_METHOD = "lstsq-reflectances-d65-v1"
+"""Names the fit of :func:`preview_matrix` in its cache key: change it when the fit changes."""
+
+
+def preview_matrix(world) -> np.ndarray:
+    """Camera RGB under the world's canonical light -> linear sRGB (D65).
+
+    Arguments:
+        world: a :class:`ccjax.world.World` (reflectances, canonical light, camera).
+
+    Returns:
+        ``(3, 3)`` float32, ``srgb = matrix @ camera_rgb``; the canonical white maps to
+        ``(1, 1, 1)`` times its brightest channel.
+    """
+    import colour
+
+    from ccjax.spectra import resample
+
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    xyz_curves = resample(np.asarray(cmfs.wavelengths), np.asarray(cmfs.values), kind="sensor")
+    d65 = colour.SDS_ILLUMINANTS["D65"]
+    d65 = resample(np.asarray(d65.wavelengths), np.asarray(d65.values), kind="spectrum")
+    reflectances = np.asarray(world.reflectances, np.float64)
+    camera = reflectances * np.asarray(world.canonical, np.float64) @ np.asarray(world.camera.sensors, np.float64)
+    xyz = (reflectances * d65) @ xyz_curves
+    white_camera = np.asarray(world.canonical_white, np.float64)
+    white_xyz = d65 @ xyz_curves
+    camera, xyz = camera / white_camera.max(), xyz / white_xyz[1]
+    matrix = np.linalg.lstsq(camera, xyz, rcond=None)[0].T  # xyz ~ matrix @ camera
+    srgb = _XYZ_TO_SRGB @ matrix
+    # Scale rows so the canonical white lands exactly on (1, 1, 1) * its brightest channel.
+    white = srgb @ (white_camera / white_camera.max())
+    if not np.all(white > 0):
+        raise ValueError(f"world: the preview matrix of {world.name!r} maps its canonical white outside sRGB")
+    return (srgb / white[:, None]).astype(np.float32)
+
+
+def preview_matrix_cached(world) -> np.ndarray:
+    """:func:`preview_matrix`, cached on disk by the world's content (importing colour-science is slow)."""
+    key = content_key("preview", PREVIEW_METHOD, world)
+    return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, {"world": world.name})["matrix"]
+
+
+def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: float = 99.0) -> np.ndarray:
+    """8-bit sRGB rendering of a linear camera image.
+
+    Arguments:
+        rgb: ``(H, W, 3)`` linear camera RGB.
+        matrix: camera -> linear sRGB (:func:`preview_matrix`); identity if None.
+        percentile: exposure: this percentile of the brightest channel becomes 1.
+
+    Returns:
+        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve).
+    """
+    linear = np.asarray(rgb, np.float32) @ (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
+    scale = np.percentile(linear.max(axis=-1), percentile)
+    linear = np.clip(linear / max(float(scale), 1e-12), 0.0, 1.0)
+    encoded = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+    return np.round(encoded * 255).astype(np.uint8)
+
+
+def write_preview(path: str | os.PathLike, rgb: ArrayLike, matrix: np.ndarray | None = None) -> None:
+    """Write :func:`srgb_preview` of ``rgb`` as an 8-bit PNG."""
+    write_png(path, srgb_preview(rgb, matrix))

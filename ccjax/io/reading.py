@@ -1,0 +1,178 @@
+"""Reading linear camera images (Barnard 1999 §2.7, §4.6): 16-bit PNG, TIFF, camera raw.
+
+:func:`read_image` subtracts the black level, divides by ``saturation - black`` (so the sensor's
+full well is 1.0) and marks clipped pixels (any channel at or above the saturation level; the
+thesis discards them, §2.7). 8-bit files are refused unless ``assume_linear``: they are almost
+always gamma-encoded, and estimating on gamma-encoded data is silently wrong.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ccjax.io.png import read_png
+
+RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *RAW_SUFFIXES)
+
+_RAW_CLIP = 0.999  # LibRaw's scaled white level can round down by a code or two
+
+
+@dataclass(frozen=True)
+class LinearImage:
+    """A linear camera image on the unit scale (the saturation level is 1.0).
+
+    Attributes:
+        rgb: ``(H, W, 3)`` float32, black level subtracted, divided by ``saturation - black``.
+        clipped: ``(H, W)`` True where any channel reached the saturation level.
+        path: where it came from.
+        bit_depth: 8 or 16 for integer files, 32/64 for float TIFF, 16 for raw.
+    """
+
+    rgb: np.ndarray
+    clipped: np.ndarray
+    path: str = ""
+    bit_depth: int = 16
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(height, width)``."""
+        return self.rgb.shape[:2]
+
+
+def _read_raw(path: Path) -> np.ndarray:
+    """Camera-native linear RGB of a raw file, on LibRaw's scale (black 0, white 65535)."""
+    try:
+        import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
+    except ImportError:
+        raise ValueError(
+            f"image: {path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')"
+        ) from None
+    with rawpy.imread(str(path)) as raw:
+        # Camera-native RGB, no white balance, no colour matrix, linear, one pixel per Bayer quad
+        # (half_size: no demosaicing, so pixels are not interpolated across edges).
+        return raw.postprocess(
+            output_color=rawpy.ColorSpace.raw,
+            gamma=(1, 1),
+            no_auto_bright=True,
+            output_bps=16,
+            use_camera_wb=False,
+            use_auto_wb=False,
+            user_wb=[1.0, 1.0, 1.0, 1.0],
+            half_size=True,
+            user_flip=0,
+            adjust_maximum_thr=0.0,  # keep the camera's white level (LibRaw would lower it to the data's maximum)
+        )
+
+
+def _read_pixels(path: Path) -> np.ndarray:
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        return read_png(path)
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        pixels = tifffile.imread(path)
+        if pixels.ndim == 3 and pixels.shape[0] in (3, 4) and pixels.shape[2] not in (3, 4):
+            pixels = np.moveaxis(pixels, 0, -1)  # planar (separate) configuration
+        return pixels
+    raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
+
+
+def read_image(
+    path: str | os.PathLike,
+    *,
+    black_level: float = 0.0,
+    saturation: float | None = None,
+    assume_linear: bool = False,
+) -> LinearImage:
+    """Read a linear image (16-bit PNG, TIFF, or camera raw with the ``raw`` extra).
+
+    Arguments:
+        path: the file.
+        black_level: value of a black pixel in file units (subtracted). Raw files: LibRaw applies
+            the camera's own black and white levels.
+        saturation: file value at which the sensor saturates (default: the format's maximum, 65535
+            for 16-bit, 255 for 8-bit, 1.0 for float TIFF); pixels with any channel at or above it
+            are marked clipped.
+        assume_linear: accept 8-bit files as linear data (otherwise they are refused).
+
+    Returns:
+        A :class:`LinearImage`.
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ValueError: unreadable, not RGB, empty, 8-bit without ``assume_linear``, or every pixel
+            clipped; the message names the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"image: no such file: {path}")
+    default_saturation = None
+    try:
+        if path.suffix.lower() in RAW_SUFFIXES:
+            # LibRaw has subtracted the black level and scaled the white level to 65535 (give or
+            # take its rounding: a saturated pixel comes out as 65534, see _RAW_CLIP).
+            pixels, black_level, default_saturation = _read_raw(path), 0.0, 65535.0
+        else:
+            pixels = _read_pixels(path)
+    except ValueError as error:
+        raise ValueError(f"image: cannot read {path}: {error}") from None
+    except Exception as error:  # a decoder's own exception types: report them the same way
+        raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
+    if pixels.ndim == 2 or (pixels.ndim == 3 and pixels.shape[2] < 3):
+        raise ValueError(f"image: {path} is a greyscale image; colour constancy needs RGB")
+    if pixels.ndim != 3 or pixels.shape[2] not in (3, 4):
+        raise ValueError(f"image: {path} has shape {pixels.shape}; expected (height, width, 3)")
+    pixels = pixels[..., :3]  # drop alpha
+    if pixels.size == 0:
+        raise ValueError(f"image: {path} has no pixels (size {pixels.shape[0]}x{pixels.shape[1]})")
+    if pixels.dtype == np.uint8 and not assume_linear:
+        raise ValueError(
+            f"image: {path} is 8-bit; 8-bit files are almost always gamma-encoded (sRGB), not linear "
+            "camera data. Use a 16-bit linear file (or raw), or pass --assume-linear if it really is linear"
+        )
+    if np.issubdtype(pixels.dtype, np.integer):
+        bit_depth = 8 * pixels.dtype.itemsize
+        full_scale = float(np.iinfo(pixels.dtype).max)
+    elif np.issubdtype(pixels.dtype, np.floating):
+        bit_depth, full_scale = 8 * pixels.dtype.itemsize, 1.0
+    else:
+        raise ValueError(f"image: {path} has unsupported sample type {pixels.dtype}")
+    level = float(saturation if saturation is not None else default_saturation or full_scale)
+    if not level > black_level:
+        raise ValueError(f"saturation: {level} must be above the black level {black_level}")
+    values = pixels.astype(np.float32)
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"image: {path} contains NaN or infinite values")
+    clip_level = level * (_RAW_CLIP if default_saturation is not None and saturation is None else 1.0)
+    clipped = np.any(values >= clip_level, axis=-1)
+    if np.all(clipped):
+        raise ValueError(
+            f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g})"
+        )
+    rgb = np.maximum(values - np.float32(black_level), 0.0) / np.float32(level - black_level)
+    return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth)
+
+
+def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
+    """Expand files and folders (a folder gives its image files, sorted, not recursive).
+
+    Arguments:
+        paths: files and folders.
+
+    Returns:
+        The files, folders expanded in place.
+    """
+    found: list[Path] = []
+    for item in map(Path, paths):
+        if item.is_dir():
+            found += sorted(p for p in item.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        else:
+            found.append(item)
+    return found

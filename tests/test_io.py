@@ -1,0 +1,194 @@
+"""Image files (ccjax.io): PNG through libpng against a reference codec, reading linear images,
+refusing bad files, ground truth, previews, raw files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import tifffile
+from image_files import bad_files, reference_decode_rgb, reference_png
+from small_world import small_world
+
+from ccjax import io
+
+# ---------------------------------------------------------------------------------------------
+# PNG
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.uint8])
+@pytest.mark.parametrize("filters", [[0], [1], [2], [3], [4], [0, 1, 2, 3, 4], [4, 3, 1]])
+def test_png_decoder_undoes_every_filter(tmp_path, dtype, filters):
+    rng = np.random.default_rng(len(filters))
+    pixels = rng.integers(0, np.iinfo(dtype).max, (7, 6, 3), endpoint=True).astype(dtype)
+    pixels[:3] = pixels[0, 0]  # flat rows make the predictors matter
+    path = tmp_path / "f.png"
+    path.write_bytes(reference_png(pixels, filters))
+    np.testing.assert_array_equal(io.read_png(path), pixels)
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.uint8])
+@pytest.mark.parametrize("shape", [(1, 1), (3, 17), (16, 2)])
+def test_png_writer_matches_the_reference_decoder(tmp_path, dtype, shape):
+    pixels = np.random.default_rng(0).integers(0, np.iinfo(dtype).max, shape + (3,), endpoint=True).astype(dtype)
+    pixels[0, 0] = [0x0102, 0x0304, 0xFF00] if dtype == np.uint16 else [1, 2, 255]  # byte order shows
+    io.write_png(tmp_path / "w.png", pixels)
+    depth, decoded = reference_decode_rgb((tmp_path / "w.png").read_bytes())
+    assert depth == 8 * np.dtype(dtype).itemsize
+    np.testing.assert_array_equal(decoded, pixels)
+    np.testing.assert_array_equal(io.read_png(tmp_path / "w.png"), pixels)
+
+
+def test_png_writer_refuses_what_it_cannot_write(tmp_path):
+    for pixels in (np.zeros((4, 4), np.uint16), np.zeros((4, 4, 3), np.float32), np.zeros((0, 4, 3), np.uint16)):
+        with pytest.raises(ValueError, match="pixels"):
+            io.write_png(tmp_path / "x.png", pixels)
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_png_write_is_atomic_and_replaces(tmp_path):
+    path = tmp_path / "a.png"
+    io.write_png(path, np.zeros((2, 2, 3), np.uint16))
+    io.write_png(path, np.full((2, 2, 3), 7, np.uint16))
+    np.testing.assert_array_equal(io.read_png(path), 7)
+    assert [p.name for p in tmp_path.iterdir()] == ["a.png"]  # no temporary file left behind
+
+
+def test_png_alpha_is_dropped(tmp_path):
+    pixels = np.random.default_rng(9).integers(0, 60000, (3, 4, 4)).astype(np.uint16)
+    (tmp_path / "a.png").write_bytes(reference_png(pixels, [4]))
+    np.testing.assert_allclose(io.read_image(tmp_path / "a.png").rgb, pixels[..., :3] / 65535.0, rtol=1e-6)
+
+
+# ---------------------------------------------------------------------------------------------
+# read_image
+
+
+def test_read_16bit_black_saturation_and_clipping(tmp_path):
+    codes = np.array([[[100, 1100, 60000], [64000, 50, 100]], [[65535, 65535, 65535], [3000, 2000, 1000]]], np.uint16)
+    io.write_png(tmp_path / "a.png", codes)
+    image = io.read_image(tmp_path / "a.png", black_level=100, saturation=64000)
+    want = np.maximum(codes.astype(np.float64) - 100, 0) / (64000 - 100)
+    np.testing.assert_allclose(image.rgb, want, rtol=1e-6)
+    np.testing.assert_array_equal(image.clipped, [[False, True], [True, False]])
+    assert image.bit_depth == 16
+
+
+def test_read_tiff_integer_float_and_planar(tmp_path):
+    codes = np.random.default_rng(1).integers(0, 60000, (4, 5, 3)).astype(np.uint16)
+    tifffile.imwrite(tmp_path / "a.tif", codes, photometric="rgb")
+    np.testing.assert_allclose(io.read_image(tmp_path / "a.tif").rgb, codes / 65535.0, rtol=1e-6)
+    tifffile.imwrite(tmp_path / "p.tif", np.moveaxis(codes, -1, 0), photometric="rgb", planarconfig="separate")
+    np.testing.assert_allclose(io.read_image(tmp_path / "p.tif").rgb, codes / 65535.0, rtol=1e-6)
+    floats = np.random.default_rng(2).random((4, 5, 3)).astype(np.float32) * 0.9
+    tifffile.imwrite(tmp_path / "f.tif", floats, photometric="rgb")
+    np.testing.assert_allclose(io.read_image(tmp_path / "f.tif").rgb, floats, rtol=1e-6)
+
+
+def test_bad_files_raise_clear_errors(tmp_path):
+    for message, path in bad_files(tmp_path):
+        with pytest.raises(ValueError, match=message) as error:
+            io.read_image(path)
+        assert str(path) in str(error.value)
+    with pytest.raises(FileNotFoundError):
+        io.read_image(tmp_path / "missing.png")
+    with pytest.raises(ValueError, match="unsupported file type"):
+        (tmp_path / "a.jpg").write_bytes(b"")
+        io.read_image(tmp_path / "a.jpg")
+    linear = io.read_image(tmp_path / "eight.png", assume_linear=True)
+    np.testing.assert_allclose(linear.rgb, 100 / 255.0, rtol=1e-6)
+
+
+def test_write_linear_png_and_tiff(tmp_path):
+    rgb = np.random.default_rng(4).random((5, 6, 3)) * 1.2 - 0.1  # out of range values clamp
+    for name in ("a.png", "a.tif"):
+        io.write_linear(tmp_path / name, rgb)
+        image = io.read_image(tmp_path / name)
+        np.testing.assert_allclose(image.rgb, np.clip(rgb, 0, 1), atol=0.5 / 65535 + 1e-7)
+        np.testing.assert_array_equal(image.clipped, np.any(rgb >= 1, axis=-1))
+    with pytest.raises(ValueError, match="must end in"):
+        io.write_linear(tmp_path / "a.jpg", rgb)
+
+
+# ---------------------------------------------------------------------------------------------
+# Ground truth and preview
+
+
+def test_ground_truth_round_trip_and_errors(tmp_path):
+    io.write_ground_truth(tmp_path / "gt.csv", ["a.png", "b.png"], [[0.2, 0.3, 0.5], [1.0, 2.0, 3.0]])
+    truth = io.read_ground_truth(tmp_path / "gt.csv")
+    np.testing.assert_allclose(truth["b.png"], [1.0, 2.0, 3.0])
+    (tmp_path / "bad.csv").write_text("name,red,green,blue\na,1,2,3\n")
+    with pytest.raises(ValueError, match="image,r,g,b"):
+        io.read_ground_truth(tmp_path / "bad.csv")
+    (tmp_path / "neg.csv").write_text("image,r,g,b\na,-1,2,3\n")
+    with pytest.raises(ValueError, match="line 2"):
+        io.read_ground_truth(tmp_path / "neg.csv")
+    with pytest.raises(ValueError, match="not found"):
+        io.match_ground_truth(truth, tmp_path)
+
+
+def test_ground_truth_matches_by_name_then_stem(tmp_path):
+    truth_path = io.write_dataset(tmp_path, np.full((2, 3, 3, 3), 0.25), [[1.0, 2.0, 3.0], [3.0, 2.0, 1.0]])
+    truth = io.read_ground_truth(truth_path)
+    truth["image-0001.tif"] = truth.pop("image-0001.png")  # another suffix: found by its stem
+    pairs = io.match_ground_truth(truth, tmp_path)
+    assert [p.name for p, _ in pairs] == ["image-0000.png", "image-0001.png"]
+    np.testing.assert_allclose(pairs[1][1], [3.0, 2.0, 1.0])
+
+
+def test_preview_renders_the_canonical_white_grey():
+    world = small_world()
+    matrix = io.preview_matrix(world)
+    white = np.asarray(world.canonical_white)[None, None] * np.ones((2, 2, 1), np.float32)
+    preview = io.srgb_preview(white, matrix)
+    assert preview.dtype == np.uint8 and np.all(preview == preview[0, 0, 0])
+
+
+def test_preview_matrix_is_cached_as_arrays(tmp_path, monkeypatch):
+    from ccjax.io import preview
+
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
+    world, cache = small_world(), tmp_path / "cache"
+
+    first = io.preview_matrix_cached(world)
+    np.testing.assert_array_equal(first, io.preview_matrix(world))
+    stored = list((cache / "preview").glob("*.npz"))
+    assert len(stored) == 1
+    with np.load(stored[0], allow_pickle=False) as arrays:  # no pickle in the file
+        np.testing.assert_array_equal(arrays["matrix"], first)
+    monkeypatch.setattr(preview, "preview_matrix", lambda world: pytest.fail("recomputed instead of loading"))
+    np.testing.assert_array_equal(io.preview_matrix_cached(world), first)
+
+
+# ---------------------------------------------------------------------------------------------
+# Camera raw
+
+
+def _write_dng(path, cfa, white):
+    """A minimal uncompressed RGGB DNG (tifffile + the DNG tags LibRaw needs)."""
+    extratags = [
+        (33421, "H", 2, (2, 2), True),  # CFARepeatPatternDim
+        (33422, "B", 4, (0, 1, 1, 2), True),  # CFAPattern: RGGB
+        (50706, "B", 4, (1, 4, 0, 0), True),  # DNGVersion
+        (50707, "B", 4, (1, 1, 0, 0), True),  # DNGBackwardVersion
+        (50708, "s", 0, "ccjax test", True),  # UniqueCameraModel
+        (50714, "H", 1, 0, True),  # BlackLevel
+        (50717, "H", 1, white, True),  # WhiteLevel
+        (50721, "2i", 9, (1, 1, 0, 1, 0, 1, 0, 1, 1, 1, 0, 1, 0, 1, 0, 1, 1, 1), True),  # ColorMatrix1
+        (50778, "H", 1, 21, True),  # CalibrationIlluminant1
+        (271, "s", 0, "Canon", True),
+        (272, "s", 0, "Canon EOS 5D Mark II", True),
+    ]
+    tifffile.imwrite(path, cfa, photometric=32803, extratags=extratags, metadata=None)
+
+
+def test_raw_file_through_rawpy(tmp_path):
+    pytest.importorskip("rawpy", reason="the raw extra (rawpy) is not installed")
+    cfa = np.zeros((64, 96), np.uint16)
+    cfa[0::2, 0::2], cfa[0::2, 1::2], cfa[1::2, 0::2], cfa[1::2, 1::2] = 1000, 2000, 2000, 3000
+    cfa[:2, :2] = 4095  # one saturated Bayer quad
+    _write_dng(tmp_path / "a.dng", cfa, 4095)
+    image = io.read_image(tmp_path / "a.dng")
+    assert image.rgb.shape == (32, 48, 3)  # one pixel per Bayer quad (no demosaicing)
+    np.testing.assert_allclose(image.rgb[5, 5], np.array([1000, 2000, 3000]) / 4095, rtol=2e-4)
+    assert image.clipped[0, 0] and image.clipped.sum() == 1
