@@ -29,6 +29,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 import correlation_oracle as oracle
 
 from ccjax import scenes
+from ccjax._colour import rg_numpy
 from ccjax.estimators import correlation, registry
 from ccjax.world import World
 
@@ -82,7 +83,9 @@ def main() -> None:
             start = time.perf_counter()
             jax.block_until_ready(_estimate(model, batch.rgb, batch.mask))
             compile_time = time.perf_counter() - start
-            median, best = _timed(lambda: _estimate(model, batch.rgb, batch.mask), args.repeats)
+            median, best = _timed(
+                lambda model=model, batch=batch: _estimate(model, batch.rgb, batch.mask), args.repeats
+            )
             print(
                 f"  {label:<18}{n:>5} surfaces: {args.scenes / median:>10.0f} scenes/s "
                 f"(best {args.scenes / best:.0f}; first call {compile_time:.1f} s)"
@@ -94,8 +97,7 @@ def main() -> None:
     sensors = np.asarray(world.camera.sensors, np.float64)
     lights = np.asarray(world.train_illuminants, np.float64)
     reflectances = np.asarray(world.reflectances, np.float64)
-    whites = lights @ sensors
-    rg = whites[:, :2] / whites.sum(axis=1, keepdims=True)
+    rg = rg_numpy(lights @ sensors)
     log_2d = oracle.chromaticity_log_probability(reflectances, lights, sensors)
     log_3d = oracle.brightness_log_probability(reflectances, lights, sensors)
     big = scenes.sample(jax.random.key(8), world, args.scenes, 8)
@@ -107,9 +109,10 @@ def main() -> None:
         for k in range(len(rgb)):
             run_oracle(k)
         oracle_rate = len(rgb) / (time.perf_counter() - start)
-        median, _ = _timed(lambda: _estimate(models[label], big.rgb, big.mask), args.repeats)
+        median, _ = _timed(lambda model=models[label]: _estimate(model, big.rgb, big.mask), args.repeats)
         print(
-            f"  NumPy loop oracle {label:<18} 8 surfaces: {oracle_rate:>8.1f} scenes/s -> ccjax / oracle {args.scenes / median / oracle_rate:.0f}x"
+            f"  NumPy loop oracle {label:<18} 8 surfaces: {oracle_rate:>8.1f} scenes/s -> ccjax / oracle "
+            f"{args.scenes / median / oracle_rate:.0f}x"
         )
 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
