@@ -3,7 +3,7 @@
 T is learned by Adam through a differentiable estimator on synthetic scenes under the *training*
 lights, then every transform is scored on held-out scenes under the *test* lights:
 
-* GW with the chapter-5 mapping error (GW's chromaticity does not depend on T, DESIGN.md §5);
+* GW with the chapter-5 mapping error (GW's chromaticity does not depend on T, §5.6);
 * a non-linear estimator (default soft-RETINEX-t0.01) with the angular error.
 
 Run:  python examples/learned_sharpening.py [--world barnard1999|default] [--camera NAME] [--steps 200]
@@ -18,6 +18,7 @@ import jax
 import numpy as np
 
 from ccjax import sharpening
+from ccjax.experiments.chapter5 import evaluate_transforms
 from ccjax.world import World
 
 
@@ -34,18 +35,20 @@ def main() -> None:
     start = time.perf_counter()
     new = sharpening.new_sharpening(world)
     print(
-        f"world {world.name}: new method lambda_P {new.lambda_p:g}, {new.iterations} iterations ({time.perf_counter() - start:.0f} s)"
+        f"world {world.name}: new method lambda_P {new.lambda_p:g}, {new.iterations} iterations "
+        f"({time.perf_counter() - start:.0f} s)"
     )
     rows = []
     for label, loss in (("GW", "mapping"), (args.nonlinear, "angular")):
         learned = sharpening.learned_sharpening(world, label, loss, steps=args.steps)
         head, tail = np.mean(learned.losses[:20]), np.mean(learned.losses[-20:])
         print(
-            f"{label}: learned on {loss} in {learned.seconds:.0f} s; training loss (mean of first/last 20 steps) {head:.3f} -> {tail:.3f}"
+            f"{label}: learned on {loss} in {learned.seconds:.0f} s; "
+            f"training loss (mean of first/last 20 steps) {head:.3f} -> {tail:.3f}"
         )
         print(f"  learned T = {np.round(learned.transform, 4).tolist()}")
         transforms = {"none": np.eye(3), "new": new.transform, "learned": learned.transform}
-        scores = sharpening.evaluate_transforms(world, label, transforms, args.scenes, key=jax.random.key(0))
+        scores = evaluate_transforms(world, label, transforms, args.scenes, key=jax.random.key(0))
         for name, score in scores.items():
             rows.append((label, loss, name, score))
     print(f"\nheld-out: {args.scenes} scenes of 8 surfaces under test lights (RMS; mapping error in thesis units)")

@@ -1,5 +1,5 @@
-"""Colour indexing (ccjax/indexing.py): histograms, intersection, ranks and scores against NumPy
-references and Table 11.1, and a small run of the experiment."""
+"""Colour indexing (Barnard 1999 ch. 11; ccjax.experiments.indexing): histograms, intersection,
+ranks and scores against NumPy references and Table 11.1, and a small run of the experiment."""
 
 import jax
 import jax.numpy as jnp
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from small_world import small_world
 
-from ccjax import indexing
+from ccjax.experiments import indexing
 
 
 def test_histogram_matches_numpy():
@@ -74,3 +74,10 @@ def test_small_experiment():
     for row in rows.values():
         assert row["n1"] + row["n2"] + row["n3"] <= 32 and 0 <= row["score3"] <= 1
     assert -1 <= result.spearman() <= 1
+
+
+def test_old_path_re_exports_the_experiment():
+    import ccjax.indexing as old
+
+    for name in ("rg_histogram", "intersection", "correct_ranks", "rank_scores", "run_indexing", "IndexingResult"):
+        assert getattr(old, name) is getattr(indexing, name)

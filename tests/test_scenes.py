@@ -1,17 +1,28 @@
-"""Synthetic scenes: sampling, specular recipe, clipping, noise, reproducibility."""
+"""Synthetic scenes (Barnard 1999 §4.7): sampling, the one draw function, specular recipe,
+clipping, noise, reproducibility."""
 
 import jax
 import numpy as np
 import pytest
 
 from ccjax import scenes
-from ccjax.scenes import SceneTables, ShotNoise, Specular, sample, sample_batch, scene_keys
+from ccjax.scenes import (
+    SceneTables,
+    ShotNoise,
+    Specular,
+    draw_scene,
+    draw_scenes,
+    sample,
+    sample_batch,
+    scene_keys,
+    sweep_keys,
+)
 
 
 @pytest.mark.parametrize("n_surfaces", [1, 8, 64, 65, 1024, 1993])
 def test_draws_are_distinct_and_in_range(n_surfaces):
     keys = scene_keys(jax.random.key(0), 0, 20)
-    draws = np.asarray(jax.vmap(lambda k: scenes._draw_without_replacement(k, 1993, n_surfaces))(keys))
+    draws = np.asarray(jax.vmap(lambda k: scenes.draw_without_replacement(k, 1993, n_surfaces))(keys))
     assert draws.min() >= 0 and draws.max() < 1993
     assert all(len(set(row)) == n_surfaces for row in draws.tolist())
 
@@ -26,7 +37,7 @@ def test_rgb_is_physical(default_world, n_surfaces):
 
 def test_floyd_sampler_is_uniform():
     keys = scene_keys(jax.random.key(3), 0, 20000)
-    draws = jax.vmap(lambda k: scenes._draw_without_replacement(k, 10, 4))(keys)
+    draws = jax.vmap(lambda k: scenes.draw_without_replacement(k, 10, 4))(keys)
     counts = np.bincount(np.asarray(draws).ravel(), minlength=10)
     expected = 20000 * 4 / 10
     assert np.all(np.abs(counts - expected) < 5 * np.sqrt(expected))
@@ -96,3 +107,32 @@ def test_bad_arguments(default_world):
         sample(jax.random.key(0), default_world, 2, 8, clip=-1.0)
     with pytest.raises(ValueError, match="specular"):
         sample(jax.random.key(0), default_world, 2, 8, specular=Specular(probability=2.0))
+
+
+def test_samples_are_drawn_by_draw_scene(default_world):
+    """``sample`` gathers the light and surfaces :func:`draw_scene` draws from each scene key."""
+    key = jax.random.key(4)
+    batch = sample(key, default_world, 30, 8, specular=True, noise=True)
+    n_lights, n_reflectances = default_world.test_illuminants.shape[0], default_world.reflectances.shape[0]
+    keys = scene_keys(key, 0, 30)
+    drawn = draw_scenes(keys, n_lights, n_reflectances, 8)
+    tables = SceneTables.from_world(default_world)
+    np.testing.assert_array_equal(np.asarray(batch.illuminant), np.asarray(tables.whites[drawn.light]))
+    # Canonical RGBs identify the surfaces (specular amounts add a multiple of white to both).
+    matte = sample(key, default_world, 30, 8)
+    np.testing.assert_array_equal(np.asarray(matte.canonical_rgb), np.asarray(tables.canonical_rgb[drawn.surfaces]))
+    one = draw_scene(keys[3], n_lights, n_reflectances, 8)
+    assert int(one.light) == int(drawn.light[3])
+    np.testing.assert_array_equal(np.asarray(one.surfaces), np.asarray(drawn.surfaces[3]))
+    assert all(len(set(row)) == 8 for row in np.asarray(drawn.surfaces).tolist())
+
+
+def test_sweep_keys_are_the_surface_count_stream():
+    key = jax.random.key(8)
+    np.testing.assert_array_equal(
+        jax.random.key_data(sweep_keys(key, 8, 5, 3)),
+        jax.random.key_data(scene_keys(jax.random.fold_in(key, 8), 5, 3)),
+    )
+    assert not np.array_equal(
+        jax.random.key_data(sweep_keys(key, 8, 0, 3)), jax.random.key_data(sweep_keys(key, 9, 0, 3))
+    )

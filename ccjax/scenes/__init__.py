@@ -1,0 +1,27 @@
+"""Synthetic scenes (Barnard 1999 §4.7): surface lists drawn from a world
+(:mod:`ccjax.scenes.surfaces`) and Mondrian images rendered from its spectra
+(:mod:`ccjax.scenes.mondrian`).
+
+:func:`draw_scene` is the one function that draws a scene's light and surfaces; every sampler and
+the chapter-5 experiment use it.
+"""
+
+from ccjax.scenes.mondrian import MondrianImages as MondrianImages
+from ccjax.scenes.mondrian import mondrian_batch as mondrian_batch
+from ccjax.scenes.mondrian import mondrian_layout as mondrian_layout
+from ccjax.scenes.mondrian import render_mondrian as render_mondrian
+from ccjax.scenes.mondrian import sample_mondrians as sample_mondrians
+from ccjax.scenes.surfaces import SceneDraw as SceneDraw
+from ccjax.scenes.surfaces import Scenes as Scenes
+from ccjax.scenes.surfaces import SceneTables as SceneTables
+from ccjax.scenes.surfaces import ShotNoise as ShotNoise
+from ccjax.scenes.surfaces import Specular as Specular
+from ccjax.scenes.surfaces import draw_scene as draw_scene
+from ccjax.scenes.surfaces import draw_scenes as draw_scenes
+from ccjax.scenes.surfaces import draw_without_replacement as draw_without_replacement
+from ccjax.scenes.surfaces import resolve_options as resolve_options
+from ccjax.scenes.surfaces import sample as sample
+from ccjax.scenes.surfaces import sample_batch as sample_batch
+from ccjax.scenes.surfaces import sample_one as sample_one
+from ccjax.scenes.surfaces import scene_keys as scene_keys
+from ccjax.scenes.surfaces import sweep_keys as sweep_keys

@@ -1,0 +1,279 @@
+"""Synthetic scenes: surface lists drawn from a world (Barnard 1999 §4.7).
+
+A scene is ``P`` surfaces drawn without replacement from the world's reflectances under one
+illuminant drawn from the **test** set; each surface gives one RGB. Options reproduce the thesis'
+experiments: specularities (each surface specular with probability 0.25, adding ``U(0, 2)`` times a
+perfect white, §4.7 and ch. 8), clipping (pixels with any channel above the level are discarded,
+i.e. masked out) and shot noise (the chapter 3 noise model, variance ``a * rho + b``).
+
+Everything after the per-world tables is a pure function of a PRNG key, so scenes are reproducible
+and batches are generated with ``jax.vmap`` over per-scene keys: a sweep gives the same scenes
+whatever its chunking or sharding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
+
+from ccjax.world import World
+
+# Floyd's algorithm costs O(P^2) per scene, Gumbel top-k O(S log P); switch where they cross.
+_FLOYD_MAX_SURFACES = 64
+
+
+class Scenes(eqx.Module):
+    """A batch of synthetic scenes (Barnard 1999 §4.7): fixed shapes with a mask, so batches ``vmap``.
+
+    Attributes:
+        rgb: ``(B, P, 3)`` camera RGB of each surface under the scene light.
+        mask: ``(B, P)`` True where the surface is valid (False: clipped or padding).
+        illuminant: ``(B, 3)`` camera RGB of a perfect white under the scene light (ground truth).
+        canonical_rgb: ``(B, P, 3)`` the same surfaces under the canonical light (mapping errors).
+    """
+
+    rgb: Float[Array, "B P 3"]
+    mask: Bool[Array, "B P"]
+    illuminant: Float[Array, "B 3"]
+    canonical_rgb: Float[Array, "B P 3"]
+
+
+@dataclass(frozen=True)
+class Specular:
+    """Dielectric specularities (Barnard 1999 §4.7, ch. 8): each surface is specular with
+    ``probability`` and then gains ``U(0, max_amount)`` times a perfect white reflectance."""
+
+    probability: float = 0.25
+    max_amount: float = 2.0
+
+
+@dataclass(frozen=True)
+class ShotNoise:
+    """Chapter 3 noise model on the unit scale: ``rho + sqrt(a * rho + b) * N(0, 1)``, clamped at
+    zero (a sensor cannot report a negative count). Defaults: ``a = 2e-6``, ``b = (0.05/255)^2``."""
+
+    a: float = 2e-6
+    b: float = (0.05 / 255.0) ** 2
+
+
+class SceneTables(eqx.Module):
+    """Per-world response tables from which scenes are gathered (computed once per world)."""
+
+    surface_rgb: Float[Array, "J S 3"]  # every reflectance under every test illuminant
+    whites: Float[Array, "J 3"]
+    canonical_rgb: Float[Array, "S 3"]
+    canonical_white: Float[Array, " 3"]
+
+    @classmethod
+    def from_world(cls, world: World) -> SceneTables:
+        sensors = world.camera.sensors
+        lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
+        surface_rgb = jnp.einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
+        return cls(
+            surface_rgb=surface_rgb,
+            whites=world.test_whites,
+            canonical_rgb=world.canonical_rgb,
+            canonical_white=world.canonical_white,
+        )
+
+
+def draw_without_replacement(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, " P"]:
+    """``n_draws`` distinct indices into ``0 .. n_population - 1``, uniformly (Barnard 1999 §4.7:
+    the surfaces of a scene are distinct).
+
+    Arguments:
+        key: a ``jax.random`` key.
+        n_population: number of items to draw from.
+        n_draws: number of distinct draws (static).
+
+    Returns:
+        ``(n_draws,)`` int32 indices.
+    """
+    if n_draws <= _FLOYD_MAX_SURFACES:
+        # Floyd's algorithm: step i draws t in [0, n - P + i]; a repeat is replaced by n - P + i.
+        ceilings = n_population - n_draws + jnp.arange(n_draws)
+        draws = jnp.floor(jax.random.uniform(key, (n_draws,)) * (ceilings + 1)).astype(jnp.int32)
+        draws = jnp.minimum(draws, ceilings)
+
+        def step(i, chosen):
+            taken = jnp.any((chosen == draws[i]) & (jnp.arange(n_draws) < i))
+            return chosen.at[i].set(jnp.where(taken, ceilings[i], draws[i]))
+
+        return jax.lax.fori_loop(0, n_draws, step, jnp.full((n_draws,), -1, jnp.int32))
+    # Gumbel top-k: the P largest of S iid uniforms form a uniform P-subset.
+    return jax.lax.top_k(jax.random.uniform(key, (n_population,)), n_draws)[1].astype(jnp.int32)
+
+
+class SceneDraw(eqx.Module):
+    """Which light and which surfaces a scene uses (Barnard 1999 §4.7), as indices.
+
+    Attributes:
+        light: ``(...)`` index into the world's test illuminants (or whichever light set was drawn from).
+        surfaces: ``(..., P)`` distinct indices into the world's reflectances.
+    """
+
+    light: Int[Array, "*batch"]
+    surfaces: Int[Array, "*batch P"]
+
+
+def _scene_subkeys(key: PRNGKeyArray) -> PRNGKeyArray:
+    # One split per scene key: light, surfaces, specular choice, specular amount, noise.
+    return jax.random.split(key, 5)
+
+
+def draw_scene(key: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces: int) -> SceneDraw:
+    """Draw the light and the surfaces of ONE scene from its per-scene key (Barnard 1999 §4.7).
+
+    This is the one place scenes are drawn: :func:`sample_one` (hence :func:`sample`,
+    :func:`sample_batch` and the sweeps) and the chapter-5 experiment both call it, so the same
+    key gives the same light and surfaces everywhere.
+
+    Arguments:
+        key: the scene's key (e.g. one of :func:`scene_keys`).
+        n_lights: number of lights to draw from.
+        n_reflectances: number of reflectances to draw from.
+        n_surfaces: surfaces per scene (static), drawn without replacement.
+
+    Returns:
+        :class:`SceneDraw` without a batch axis.
+    """
+    key_light, key_surf = _scene_subkeys(key)[:2]
+    light = jax.random.randint(key_light, (), 0, n_lights)
+    return SceneDraw(light=light, surfaces=draw_without_replacement(key_surf, n_reflectances, n_surfaces))
+
+
+def draw_scenes(keys: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces: int) -> SceneDraw:
+    """:func:`draw_scene` for a batch of per-scene keys ``(B,)``.
+
+    Arguments:
+        keys: ``(B,)`` per-scene keys.
+        n_lights, n_reflectances, n_surfaces: as :func:`draw_scene`.
+
+    Returns:
+        :class:`SceneDraw` with batch axis ``B``.
+    """
+    return jax.vmap(lambda k: draw_scene(k, n_lights, n_reflectances, n_surfaces))(keys)
+
+
+def sample_one(
+    key: PRNGKeyArray,
+    tables: SceneTables,
+    n_surfaces: int,
+    specular: Specular | None = None,
+    noise: ShotNoise | None = None,
+    clip: float | None = None,
+) -> Scenes:
+    """One scene from a per-scene key (fields without the batch axis); vmap it for batches."""
+    n_lights, n_reflectances, _ = tables.surface_rgb.shape
+    drawn = draw_scene(key, n_lights, n_reflectances, n_surfaces)
+    light, surfaces = drawn.light, drawn.surfaces
+    key_spec, key_amount, key_noise = _scene_subkeys(key)[2:]
+    white = tables.whites[light]
+    rgb = tables.surface_rgb[light, surfaces]
+    canonical = tables.canonical_rgb[surfaces]
+    if specular is not None:
+        is_specular = jax.random.uniform(key_spec, (n_surfaces,)) < specular.probability
+        amount = jnp.where(is_specular, jax.random.uniform(key_amount, (n_surfaces,)) * specular.max_amount, 0.0)
+        rgb = rgb + amount[:, None] * white
+        canonical = canonical + amount[:, None] * tables.canonical_white
+    if noise is not None:
+        sigma = jnp.sqrt(noise.a * rgb + noise.b)
+        rgb = jnp.maximum(rgb + sigma * jax.random.normal(key_noise, rgb.shape), 0.0)
+    mask = jnp.ones((n_surfaces,), bool)
+    if clip is not None:
+        mask = jnp.all(rgb <= clip, axis=-1)
+    return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
+
+
+@partial(jax.jit, static_argnames=("n_surfaces", "specular", "noise", "clip"))
+def sample_batch(
+    keys: PRNGKeyArray,
+    tables: SceneTables,
+    n_surfaces: int,
+    specular: Specular | None = None,
+    noise: ShotNoise | None = None,
+    clip: float | None = None,
+) -> Scenes:
+    """Scenes for a batch of per-scene keys ``(B,)`` (the sweep engine's entry point)."""
+    return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip))(keys)
+
+
+def scene_keys(key: PRNGKeyArray, start: int, count: int) -> PRNGKeyArray:
+    """Keys of scenes ``start .. start+count-1`` of a stream: independent of how it is chunked."""
+    return jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(start, start + count, dtype=jnp.uint32))
+
+
+def sweep_keys(key: PRNGKeyArray, n_surfaces: int, start: int, count: int) -> PRNGKeyArray:
+    """Keys of scenes ``start .. start+count-1`` of the stream of ``n_surfaces``-surface scenes of
+    a sweep with ``key`` (the stream is ``fold_in(key, n_surfaces)``, so every scene size has its
+    own scenes and one size's scenes do not depend on which other sizes a sweep runs).
+
+    Arguments:
+        key: the sweep's key.
+        n_surfaces: surfaces per scene.
+        start, count: the scenes' positions in the stream.
+
+    Returns:
+        ``(count,)`` per-scene keys (for :func:`sample_batch` or :func:`draw_scenes`).
+    """
+    return scene_keys(jax.random.fold_in(key, n_surfaces), start, count)
+
+
+def sample(
+    key: PRNGKeyArray,
+    world: World,
+    n_scenes: int,
+    n_surfaces: int,
+    *,
+    specular: Specular | bool | None = None,
+    noise: ShotNoise | bool | None = None,
+    clip: float | None = None,
+) -> Scenes:
+    """Draw a batch of synthetic scenes (Barnard 1999 §4.7).
+
+    Arguments:
+        key: a ``jax.random`` key.
+        world: the world (test illuminants, reflectances, camera).
+        n_scenes: number of scenes ``B``.
+        n_surfaces: surfaces per scene ``P`` (drawn without replacement, at most the number of
+            reflectances).
+        specular: ``True`` for the thesis recipe (:class:`Specular` defaults) or a :class:`Specular`.
+        noise: ``True`` for the chapter 3 model with defaults, or a :class:`ShotNoise`.
+        clip: clip level on the unit scale (thesis levels 250, 300, 400 are ``250/255`` ...);
+            surfaces with any channel above it are masked out.
+
+    Returns:
+        :class:`Scenes` with batch size ``n_scenes``.
+    """
+    n_reflectances = int(world.reflectances.shape[0])
+    if not isinstance(n_scenes, int) or n_scenes < 1:
+        raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")
+    if not isinstance(n_surfaces, int) or not 1 <= n_surfaces <= n_reflectances:
+        raise ValueError(f"n_surfaces: expected an integer in [1, {n_reflectances}], got {n_surfaces!r}")
+    specular, noise = resolve_options(specular, noise, clip)
+    tables = SceneTables.from_world(world)
+    return sample_batch(scene_keys(key, 0, n_scenes), tables, n_surfaces, specular, noise, clip)
+
+
+def resolve_options(specular, noise, clip) -> tuple[Specular | None, ShotNoise | None]:
+    """Validate and normalise the scene options (``True`` -> the default recipe)."""
+    specular = Specular() if specular is True else (specular or None)
+    noise = ShotNoise() if noise is True else (noise or None)
+    if specular is not None:
+        if not isinstance(specular, Specular):
+            raise ValueError(f"specular: expected True, None or a Specular, got {specular!r}")
+        if not 0 <= specular.probability <= 1 or specular.max_amount < 0:
+            raise ValueError(f"specular: probability must be in [0, 1] and max_amount >= 0, got {specular}")
+    if noise is not None:
+        if not isinstance(noise, ShotNoise):
+            raise ValueError(f"noise: expected True, None or a ShotNoise, got {noise!r}")
+        if noise.a < 0 or noise.b < 0:
+            raise ValueError(f"noise: a and b must be non-negative, got {noise}")
+    if clip is not None and not (isinstance(clip, (int, float)) and clip > 0):
+        raise ValueError(f"clip: expected a positive level on the unit scale, got {clip!r}")
+    return specular, noise
