@@ -123,9 +123,11 @@ class Sharpened(AbstractSurfaceEstimator):
 
 
 def _surface_estimator(model: AbstractEstimator) -> AbstractSurfaceEstimator:
-    if not isinstance(model, AbstractSurfaceEstimator):
+    # The input kind, not the class, decides: estimators written before the abstract surface type
+    # declare input_kind "surfaces" without deriving from it.
+    if model.input_kind != "surfaces":
         raise ValueError(f"estimator: sharpening runs surface-list estimators, got {type(model).__name__}")
-    return model
+    return typing.cast(AbstractSurfaceEstimator, model)
 
 
 def estimator_fit(estimator: str | EstimatorFit) -> EstimatorFit:
