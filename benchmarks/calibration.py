@@ -70,7 +70,8 @@ def main() -> None:
         oracle.fit_channel(L, raw[:, k], smoothness=cal.DEFAULT_SMOOTHNESS, **F)
     scipy_time = time.perf_counter() - start
     print(
-        f"  SciPy reference (lsq_linear bvls, 2 passes x 3 channels): {scipy_time:.3f} s  -> ratio scipy/ccjax {scipy_time / median:.1f}"
+        f"  SciPy reference (lsq_linear bvls, 2 passes x 3 channels): {scipy_time:.3f} s  "
+        f"-> ratio scipy/ccjax {scipy_time / median:.1f}"
     )
 
     chosen = [names[i % len(names)] for i in range(args.cameras)]
@@ -80,7 +81,8 @@ def main() -> None:
     masks = np.stack([s.usable for s in sets])
     truth = np.stack([s.sensors for s in sets])
     print(
-        f"{args.cameras} cameras ({len(set(chosen))} distinct curve sets, each with its own noise draw), one vmapped batch:"
+        f"{args.cameras} cameras ({len(set(chosen))} distinct curve sets, each with its own noise draw), "
+        "one vmapped batch:"
     )
 
     def many():
@@ -91,11 +93,13 @@ def main() -> None:
     print(f"  first call (compile + fit): {time.perf_counter() - start:.2f} s")
     fits, median, best = _timed(many, max(1, args.repeats // 2))
     print(
-        f"  ccjax fit_sensors_batch after compilation: median {median:.2f} s ({median / args.cameras * 1e3:.1f} ms per camera)"
+        f"  ccjax fit_sensors_batch after compilation: median {median:.2f} s "
+        f"({median / args.cameras * 1e3:.1f} ms per camera)"
     )
     errors = np.stack([cal.curve_error(fits.sensors[b], truth[b]) for b in range(args.cameras)])
     print(
-        f"  curve error vs truth over the batch: median {100 * np.median(errors):.2f} %, max {100 * errors.max():.2f} % of peak; "
+        f"  curve error vs truth over the batch: median {100 * np.median(errors):.2f} %, "
+        f"max {100 * errors.max():.2f} % of peak; "
         f"converged {100 * float(np.mean(np.asarray(fits.converged))):.0f} % of channels"
     )
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

@@ -15,6 +15,8 @@ from ccjax import calibration as cal
 camera = sys.argv[1] if len(sys.argv) > 1 else "Canon EOS 5D Mark II"
 truth = cal.synthetic_calibration(camera, seed=0)
 print(f"{camera}: {truth.n_usable} usable measurements ({truth.light_source}), noise {100 * truth.noise_level:.2f} %")
+if truth.light_note:
+    print(f"note: {truth.light_note}")
 
 with tempfile.NamedTemporaryFile(suffix=".csv") as f:
     cal.write_calibration_csv(f.name, *truth.usable_data())
@@ -24,9 +26,10 @@ with tempfile.NamedTemporaryFile(suffix=".csv") as f:
 # fitted jointly (b = camera black given, C searched per channel).
 fit = cal.fit_sensors(data.spectra, data.responses, linearisation="exp", black=10.0)
 print(f"solver: {fit.status.solver}; converged {np.asarray(fit.status.converged).tolist()}")
+F = fit.fitted_linearisation()
 print(
-    f"fitted F: a0 = {np.round(fit.linearisation.a0, 2).tolist()}, a1 = {np.round(fit.linearisation.a1, 2).tolist()}, "
-    f"C = {np.round(fit.linearisation.exp_rate, 3).tolist()} (true 12, 4, 0.15)"
+    f"fitted F: a0 = {np.round(F.a0, 2).tolist()}, a1 = {np.round(F.a1, 2).tolist()}, "
+    f"C = {np.round(F.exp_rate, 3).tolist()} (true 12, 4, 0.15)"
 )
 print(
     f"RMS relative error {100 * float(fit.errors.rms_relative):.2f} %, curve error vs truth "

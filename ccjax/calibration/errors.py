@@ -30,7 +30,7 @@ class FitErrors(eqx.Module):
 
 
 def fit_errors(
-    predicted: Float[Array, "M 3"], measured: Float[Array, "M 3"], mask: Bool[Array, " M"] | None = None
+    predicted: Float[ArrayLike, "M 3"], measured: Float[ArrayLike, "M 3"], mask: Bool[ArrayLike, " M"] | None = None
 ) -> FitErrors:
     """Table 3.1's errors of predicted against measured linear responses (jit-able).
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ccjax.calibration.batch import CrossValidation
 from ccjax.calibration.fitting import DEFAULT_SMOOTHNESS as DEFAULT_SMOOTHNESS
 from ccjax.calibration.plots import plot_robustness as plot_robustness
 from ccjax.calibration.plots import plot_sensors as plot_sensors
@@ -48,7 +49,7 @@ class SyntheticReport:
     table: CalibrationTable
     held_out: HeldOut
     noise_fit: tuple[np.ndarray, np.ndarray]  # fitted (gain, floor) per channel, unit scale
-    cross_validation: object | None = None
+    cross_validation: CrossValidation | None = None
 
     def checks(self) -> dict[str, float]:
         """The numbers the thesis' claims are checked with (fractions unless stated)."""
@@ -57,28 +58,28 @@ class SyntheticReport:
         pip = self.table.row(PSEUDO_INVERSE_POSITIVE)
         ignore = self.table.row(IGNORE_F)
         black = self.table.row(BLACK_SUBTRACTED)
-        lin = joint.fit.linearisation
+        lin = joint.fit.fitted_linearisation()
         t = self.data.linearisation
         return {
-            "curve_error_max": float(joint.curve_error.max()),
-            "curve_error_pseudo_inverse_min": float(pi.curve_error.min()),
-            "curve_error_pseudo_inverse_positive_min": float(pip.curve_error.min()),
+            "curve_error_max": float(joint.truth_scores()[0].max()),
+            "curve_error_pseudo_inverse_min": float(pi.truth_scores()[0].min()),
+            "curve_error_pseudo_inverse_positive_min": float(pip.truth_scores()[0].min()),
             "rms_relative_error": joint.errors["rms_relative"],
             "noise_level": self.data.noise_level,
             "error_over_noise": joint.errors["rms_relative"] / self.data.noise_level,
             "held_out_proposed": self.held_out.errors[JOINT],
             "held_out_pseudo_inverse": self.held_out.errors[PSEUDO_INVERSE],
             "held_out_pseudo_inverse_positive": self.held_out.errors[PSEUDO_INVERSE_POSITIVE],
-            "rg_vs_truth_joint": joint.rg_error_vs_truth,
-            "rg_vs_truth_ignoring_F": ignore.rg_error_vs_truth,
-            "rg_vs_truth_black_subtracted": black.rg_error_vs_truth,
+            "rg_vs_truth_joint": joint.truth_scores()[1],
+            "rg_vs_truth_ignoring_F": ignore.truth_scores()[1],
+            "rg_vs_truth_black_subtracted": black.truth_scores()[1],
             "a0_relative_error_max": float(np.max(np.abs(np.asarray(lin.a0) / np.asarray(t.a0) - 1))),
             "a1_relative_error_max": float(np.max(np.abs(np.asarray(lin.a1) / np.asarray(t.a1) - 1))),
         }
 
     def text(self) -> str:
         c = self.checks()
-        curve = 100 * self.table.row(JOINT).curve_error
+        curve = 100 * self.table.row(JOINT).truth_scores()[0]
         gain, floor = self.noise_fit
         data = self.data
         lines = [
@@ -176,7 +177,7 @@ def synthetic_experiment(
         spectra,
         raw,
         black=black,
-        exp_rate=table.row(JOINT).fit.linearisation.exp_rate,
+        exp_rate=table.row(JOINT).fit.fitted_linearisation().exp_rate,
         smoothness=smoothness,
         seed=seed,
     )

@@ -28,8 +28,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
+from ccjax.calibration._kernel import SEARCH_POINTS as SEARCH_POINTS
+from ccjax.calibration._kernel import SEARCH_RANGE as SEARCH_RANGE
 from ccjax.calibration._kernel import ChannelFit, fit_data_set
 from ccjax.calibration._kernel import second_difference as second_difference
+from ccjax.calibration._plan import DEFAULT_FLOOR_FRACTION as DEFAULT_FLOOR_FRACTION
 from ccjax.calibration._plan import DEFAULT_SMOOTHNESS as DEFAULT_SMOOTHNESS
 from ccjax.calibration._plan import ErrorKind, FitPlan, LinearisationKind, check_data, data_arrays, plan_fit
 from ccjax.calibration.errors import FitErrors as FitErrors
@@ -76,6 +79,12 @@ class SensorFit(eqx.Module):
     mask: Bool[Array, " M"]
     errors: FitErrors
     status: FitStatus
+
+    def fitted_linearisation(self) -> Linearisation:
+        """The fitted F; only fits with ``linearisation="offset"`` or ``"exp"`` have one."""
+        if self.linearisation is None:
+            raise ValueError(f"{self.camera.name}: fitted to linear data, there is no linearisation")
+        return self.linearisation
 
     def evaluate(self, spectra, raw, mask=None) -> FitErrors:
         """Table 3.1 errors of this model on other measurements (raw responses are linearised by F)."""
@@ -166,11 +175,11 @@ def _assemble(fits: ChannelFit, rates, data, plan: FitPlan, smoothness: float, n
     if plan.kind is None:
         lin = None
     else:
-        lin = Linearisation(
-            a0=tuple(float(v) for v in fits.a0),
-            a1=tuple(float(v) for v in fits.a1),
-            exp_rate=tuple(float(v) for v in rates) if plan.kind == "exp" else (0.0,) * 3,
-            black=tuple(float(v) for v in plan.options.black),
+        lin = Linearisation.per_channel(
+            a0=np.asarray(fits.a0),
+            a1=np.asarray(fits.a1),
+            exp_rate=np.asarray(rates) if plan.kind == "exp" else 0.0,
+            black=np.asarray(plan.options.black),
         )
     return SensorFit(
         camera=_camera(sensors, name, lin),

@@ -22,6 +22,17 @@ class Linearisation:
     exp_rate: tuple[float, float, float]
     black: tuple[float, float, float]
 
+    @classmethod
+    def per_channel(cls, a0, a1, exp_rate, black) -> Linearisation:
+        """Build F from per-channel values: each argument a scalar (the same for every channel) or
+        three numbers (R, G, B)."""
+
+        def triple(values) -> tuple[float, float, float]:
+            r, g, b = (float(v) for v in np.broadcast_to(np.asarray(values, np.float64), (3,)))
+            return r, g, b
+
+        return cls(a0=triple(a0), a1=triple(a1), exp_rate=triple(exp_rate), black=triple(black))
+
     def __call__(self, raw: Float[ArrayLike, "... 3"]) -> Float[Array, "... 3"]:
         return apply_linearisation(
             raw, jnp.asarray(self.a0), jnp.asarray(self.a1), jnp.asarray(self.exp_rate), jnp.asarray(self.black)

@@ -51,8 +51,10 @@ def plot_robustness(result: Robustness, path: str, *, title: str = "") -> None:
 
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
     for label, m in result.mean().items():
-        style = dict(lw=2.5, color="k" if label == JOINT else "0.35") if label in (JOINT, JOINT_RANGE) else dict(lw=1.3)
-        ax.plot(result.sizes, 100 * m, marker="o", label=label, **style)
+        if label in (JOINT, JOINT_RANGE):  # the proposed methods stand out
+            ax.plot(result.sizes, 100 * m, marker="o", label=label, lw=2.5, color="k" if label == JOINT else "0.35")
+        else:
+            ax.plot(result.sizes, 100 * m, marker="o", label=label, lw=1.3)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xticks(result.sizes, [str(n) for n in result.sizes])

@@ -81,7 +81,7 @@ def robustness(
     spectra = np.asarray(spectra, dtype=np.float64)
     raw = np.asarray(raw, dtype=np.float64)
     full = fit_sensors(spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=exp_rate)
-    rates = full.linearisation.exp_rate
+    rates = full.fitted_linearisation().exp_rate
     support = support_of(np.asarray(full.sensors))
     linear = np.asarray(full.linear, dtype=np.float64)
     usable = np.all(linear > 0, axis=1)

@@ -266,9 +266,7 @@ def synthetic_calibration(
     noisy = unit + rng.standard_normal(unit.shape) * np.sqrt(noise_gain * unit + noise_floor)
     raw = invert_linearisation(FULL_SCALE * noisy, a0, a1, exp_rate, black)
     usable = np.all(raw < CLIP_LEVEL, axis=1)
-    truth = Linearisation(
-        a0=(float(a0),) * 3, a1=(float(a1),) * 3, exp_rate=(float(exp_rate),) * 3, black=(float(black),) * 3
-    )
+    truth = Linearisation.per_channel(a0=a0, a1=a1, exp_rate=exp_rate, black=black)
     return SyntheticCalibration(
         spectra=spectra,
         raw=np.minimum(raw, CLIP_LEVEL),

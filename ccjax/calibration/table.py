@@ -55,6 +55,12 @@ class Row:
     curve_error: np.ndarray | None = None  # (3,) fraction of peak
     rg_error_vs_truth: float | None = None
 
+    def truth_scores(self) -> tuple[np.ndarray, float]:
+        """``(curve_error (3,), rg_error_vs_truth)``: only rows of a synthetic data set have them."""
+        if self.curve_error is None or self.rg_error_vs_truth is None:
+            raise ValueError(f"{self.label}: not scored against a truth (the data set is not synthetic)")
+        return self.curve_error, self.rg_error_vs_truth
+
 
 @dataclass
 class CalibrationTable:
@@ -81,8 +87,9 @@ class CalibrationTable:
             line = f"{r.label:<50}{100 * e['rms_relative']:11.2f}{e['rms_absolute']:10.2f}"
             line += f"{e['rms_r']:9.4f}{e['rms_g']:9.4f}"
             if truth:
-                c = 100 * r.curve_error
-                line += f"{c[0]:12.1f}{c[1]:9.1f}{c[2]:9.1f}{r.rg_error_vs_truth:17.4f}"
+                curve, rg_error = r.truth_scores()
+                c = 100 * curve
+                line += f"{c[0]:12.1f}{c[1]:9.1f}{c[2]:9.1f}{rg_error:17.4f}"
             lines.append(line)
         lines.append("thesis (Sony DXC-930, 612 real measurements):")
         for label, (rel, ab, er, eg) in THESIS_TABLE_3_1.items():
@@ -135,7 +142,7 @@ def calibration_table(
         spectra, raw, smoothness=smoothness, linearisation="exp", black=black, exp_rate=exp_rate, name=JOINT
     )
     support = support_of(np.asarray(joint.sensors))
-    rates = joint.linearisation.exp_rate
+    rates = joint.fitted_linearisation().exp_rate
     rows.append((JOINT, joint))
     rows.append(
         (
@@ -215,9 +222,10 @@ def calibration_table(
             row.curve_error = curve_error(np.asarray(fit.sensors), truth.sensors)
             row.rg_error_vs_truth = _rg_error(np.asarray(fit.predicted, dtype=np.float64), truth.linear[index])
         out.append(row)
+    first = joint.fitted_linearisation()
     notes = [
-        f"linearisation fitted by the first row: a0 = {np.round(joint.linearisation.a0, 3).tolist()}, "
-        f"a1 = {np.round(joint.linearisation.a1, 3).tolist()}, C = {np.round(rates, 4).tolist()}, b = {black:g}",
+        f"linearisation fitted by the first row: a0 = {np.round(first.a0, 3).tolist()}, "
+        f"a1 = {np.round(first.a1, 3).tolist()}, C = {np.round(rates, 4).tolist()}, b = {black:g}",
         f"range constraint (main peaks of the first row, nm): {support.tolist()}",
     ]
     if truth is not None:

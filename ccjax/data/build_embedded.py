@@ -56,6 +56,8 @@ def build(source: pathlib.Path) -> None:
         names.append(f"{header['manufacturer']} {header['model']}")
         curves.append(values)
         headers.append(json.dumps({k: header.get(k) for k in ("manufacturer", "model", "document_creator", "license")}))
+    if wavelengths is None:
+        raise RuntimeError(f"{source / 'camera_ssf_rawtoaces'}: no camera curve files found")
     np.savez_compressed(
         HERE / "rawtoaces_cameras.npz",
         wavelengths=wavelengths,
