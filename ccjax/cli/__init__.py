@@ -8,6 +8,7 @@ One module per command group; each declares ``add_<command>(subparsers)`` (its a
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from ccjax.cli import (
@@ -50,6 +51,11 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as error:
         print(f"ccjax {args.command}: error: {error}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;
+        # stdout goes to devnull so the interpreter's final flush does not raise again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
 
 
 __all__ = ["COMMANDS", "GROUPS", "build_parser", "main"]
