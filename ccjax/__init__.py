@@ -11,7 +11,16 @@ import functools
 
 from ccjax import metrics
 from ccjax.camera import Camera, cameras
-from ccjax.estimators import Estimate, Estimator, estimate_batch, fit
+from ccjax.estimators import (
+    AbstractEstimator,
+    AbstractImageEstimator,
+    AbstractSurfaceEstimator,
+    Estimate,
+    Estimator,
+    Status,
+    estimate_batch,
+    fit,
+)
 from ccjax.scenes import Scenes, ShotNoise, Specular, sample
 from ccjax.spectra import WAVELENGTHS
 from ccjax.world import World
@@ -24,29 +33,34 @@ def _default_world() -> World:
     return World.default()
 
 
-def estimate(method, rgb, mask=None, *, world: World | None = None) -> Estimate:
-    """Estimate the illuminant of one scene ``(P, 3)`` or a batch ``(B, P, 3)``.
+def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
+    """Estimate the illuminant of one scene or a batch, with a label or a fitted model.
+
+    The model's input kind decides what ``x`` is: surface estimators take a surface list ``(P, 3)``
+    or a batch ``(B, P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch
+    ``(B, H, W, 3)``. Anything else raises a ``ValueError`` saying what to pass (images reach
+    surface estimators through the image pipeline, :mod:`ccjax.images`).
 
     Arguments:
-        method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ...) or a fitted
-            :class:`Estimator`.
-        rgb: linear camera RGB, non-negative and finite.
-        mask: optional booleans ``rgb.shape[:-1]``, True where a pixel is valid.
+        method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ``"grey-edge-1-6-2"``, ...) or a
+            fitted estimator.
+        x: linear camera RGB, non-negative and finite.
+        mask: optional booleans ``x.shape[:-1]``, True where a surface or pixel is valid.
         world: the world a label is fitted to (default :meth:`World.default`).
 
     Returns:
-        An :class:`Estimate` (``illuminant`` RGB of white, ``ok``), batched like ``rgb``.
+        An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like ``x``.
     """
-    from ccjax.estimators.base import validate_scene
+    from ccjax.estimators.base import validate_input
 
-    rgb, mask = validate_scene(rgb, mask)
     if isinstance(method, str):
         model = fit(method, world if world is not None else _default_world())
-    elif isinstance(method, Estimator):
+    elif isinstance(method, AbstractEstimator):
         model = method
     else:
-        raise ValueError(f"method: expected a label or an Estimator, got {type(method).__name__}")
-    return _run(model, rgb, mask)
+        raise ValueError(f"method: expected a label or a fitted estimator, got {type(method).__name__}")
+    x, mask = validate_input(model, x, mask)
+    return _run(model, x, mask)
 
 
 @functools.cache
@@ -54,24 +68,29 @@ def _compiled_runner():
     import equinox as eqx
 
     @eqx.filter_jit
-    def run(model, rgb, mask):
-        return estimate_batch(model, rgb, mask) if rgb.ndim == 3 else model(rgb, mask)
+    def run(model, x, mask):
+        one_scene_ndim = 2 if model.input_kind == "surfaces" else 3
+        return model(x, mask) if x.ndim == one_scene_ndim else estimate_batch(model, x, mask)
 
     return run
 
 
-def _run(model, rgb, mask):
-    return _compiled_runner()(model, rgb, mask)
+def _run(model, x, mask):
+    return _compiled_runner()(model, x, mask)
 
 
 __all__ = [
     "WAVELENGTHS",
+    "AbstractEstimator",
+    "AbstractImageEstimator",
+    "AbstractSurfaceEstimator",
     "Camera",
     "Estimate",
     "Estimator",
     "Scenes",
     "ShotNoise",
     "Specular",
+    "Status",
     "World",
     "cameras",
     "estimate",

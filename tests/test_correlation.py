@@ -1,5 +1,7 @@
 """Colour by Correlation (2-D §4.5.4, 3-D chapter 10) against the NumPy loop oracle in
-``tests/correlation_oracle.py``, gradient checks of the soft variants, properties and labels."""
+``tests/correlation_oracle.py``, gradient checks of the soft variants, properties and labels.
+
+Everything but the thesis-number comparison runs on the embedded default world."""
 
 from __future__ import annotations
 
@@ -29,8 +31,8 @@ def _private_cache(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def spectra(barnard_world):
-    world = barnard_world
+def spectra(default_world):
+    world = default_world
     return (
         np.asarray(world.reflectances, np.float64),
         np.asarray(world.train_illuminants, np.float64),
@@ -39,8 +41,8 @@ def spectra(barnard_world):
 
 
 @pytest.fixture(scope="module")
-def batch(barnard_world):
-    return scenes.sample(jax.random.key(11), barnard_world, N_SCENES, 8)
+def batch(default_world):
+    return scenes.sample(jax.random.key(11), default_world, N_SCENES, 8)
 
 
 @pytest.fixture(scope="module")
@@ -86,15 +88,15 @@ def compact_to_dense(matrix: np.ndarray, l_total: int) -> np.ndarray:
 # -- matrices --------------------------------------------------------------------------------------
 
 
-def test_chromaticity_matrix_matches_oracle(barnard_world, oracle_2d):
-    ours = correlation.chromaticity_matrix(barnard_world, sigma=1.0, floor=1e-6)
+def test_chromaticity_matrix_matches_oracle(default_world, oracle_2d):
+    ours = correlation.chromaticity_matrix(default_world, sigma=1.0, floor=1e-6)
     reference = oracle_2d.reshape(len(oracle_2d), -1).T
-    assert ours.shape == reference.shape == (2500, 91)
+    assert ours.shape == reference.shape == (2500, default_world.train_illuminants.shape[0])
     np.testing.assert_allclose(ours, reference, atol=2e-5, rtol=0)
 
 
-def test_brightness_matrix_matches_oracle(barnard_world, oracle_3d):
-    matrix, l_total = correlation.brightness_matrix(barnard_world)
+def test_brightness_matrix_matches_oracle(default_world, oracle_3d):
+    matrix, l_total = correlation.brightness_matrix(default_world)
     assert l_total == 50
     dense = compact_to_dense(matrix, l_total)
     possible = np.add.outer(np.arange(50), np.arange(50)) <= 49
@@ -103,9 +105,9 @@ def test_brightness_matrix_matches_oracle(barnard_world, oracle_3d):
     np.testing.assert_allclose(matrix[-1], floor, atol=2e-5, rtol=0)
 
 
-def test_specular_brightness_matrix_matches_oracle(barnard_world, spectra):
+def test_specular_brightness_matrix_matches_oracle(default_world, spectra):
     few = slice(0, 3)  # three illuminants keep the loop oracle quick
-    world = dataclasses.replace(barnard_world, train_illuminants=barnard_world.train_illuminants[few])
+    world = dataclasses.replace(default_world, train_illuminants=default_world.train_illuminants[few])
     reflectances, lights, sensors = spectra
     reference = oracle.brightness_log_probability(reflectances, lights[few], sensors, specular=(0.25, 2.0))
     matrix, l_total = correlation.brightness_matrix(world, specular=scenes.Specular())
@@ -121,8 +123,8 @@ def oracle_hull(spectra):
     return oracle.hull_compatibility(*spectra)
 
 
-def test_hull_matrix_matches_oracle(barnard_world, oracle_hull):
-    ours = correlation.hull_matrix(barnard_world)
+def test_hull_matrix_matches_oracle(default_world, oracle_hull):
+    ours = correlation.hull_matrix(default_world)
     reference = oracle_hull
     assert np.array_equal(ours, reference.reshape(len(reference), -1).T)
 
@@ -131,9 +133,9 @@ def test_hull_matrix_matches_oracle(barnard_world, oracle_hull):
 
 
 @pytest.mark.parametrize("selector", ["MAP", "MMSE", "MLM"])
-def test_chromaticity_estimates_match_oracle(barnard_world, batch, oracle_2d, illuminant_rg, selector):
+def test_chromaticity_estimates_match_oracle(default_world, batch, oracle_2d, illuminant_rg, selector):
     options = {"mlm_width": 2.0} if selector == "MLM" else {}  # the width search is tested below
-    model = registry.fit(f"C-by-C-{selector}", barnard_world, **options)
+    model = registry.fit(f"C-by-C-{selector}", default_world, **options)
     rgb, mask = np.asarray(batch.rgb, np.float64), np.asarray(batch.mask)
     with jax.enable_x64(True):
         model64 = as64(model)
@@ -148,8 +150,8 @@ def test_chromaticity_estimates_match_oracle(barnard_world, batch, oracle_2d, il
             assert np.array_equal(estimate[k, :2], illuminant_rg[index].astype(np.float32).astype(np.float64)), k
 
 
-def test_hull_estimates_match_oracle(barnard_world, batch, oracle_hull, illuminant_rg):
-    model = registry.fit("C-by-C-01", barnard_world)
+def test_hull_estimates_match_oracle(default_world, batch, oracle_hull, illuminant_rg):
+    model = registry.fit("C-by-C-01", default_world)
     compatible = oracle_hull
     estimate = np.asarray(run(model, batch.rgb, batch.mask).illuminant)
     rgb, mask = np.asarray(batch.rgb, np.float64), np.asarray(batch.mask)
@@ -183,21 +185,21 @@ def oracle_3d_posteriors(batch, oracle_3d):
     return [oracle.posterior_3d(oracle_3d, rgb[k], mask[k], method="presence") for k in range(N_SCENES)]
 
 
-def test_brightness_estimates_match_oracle(barnard_world, batch, oracle_3d, illuminant_rg, oracle_3d_posteriors):
+def test_brightness_estimates_match_oracle(default_world, batch, oracle_3d, illuminant_rg, oracle_3d_posteriors):
     """Remedy 2 (presence, the default): same MAP (level, illuminant), posterior within 1e-5."""
-    _check_brightness_against_oracle(barnard_world, batch, oracle_3d, illuminant_rg, "presence", oracle_3d_posteriors)
+    _check_brightness_against_oracle(default_world, batch, oracle_3d, illuminant_rg, "presence", oracle_3d_posteriors)
 
 
 @pytest.mark.slow
-def test_brightness_counts_estimates_match_oracle(barnard_world, batch, oracle_3d, illuminant_rg):
+def test_brightness_counts_estimates_match_oracle(default_world, batch, oracle_3d, illuminant_rg):
     """Remedy 1 (duplicate counts, Table 10.1)."""
-    _check_brightness_against_oracle(barnard_world, batch, oracle_3d, illuminant_rg, "counts", None)
+    _check_brightness_against_oracle(default_world, batch, oracle_3d, illuminant_rg, "counts", None)
 
 
-def test_float32_agrees_with_oracle(barnard_world, batch, illuminant_rg, oracle_3d_posteriors):
+def test_float32_agrees_with_oracle(default_world, batch, illuminant_rg, oracle_3d_posteriors):
     """The default float32 kernels: MMSE within 2e-4 in (r,g) on at least 98 of 100 scenes (a level
     boundary can fall between the float32 and float64 brightness of a pixel)."""
-    estimate = run(registry.fit("RGB-C-by-C-MMSE", barnard_world), batch.rgb, batch.mask).illuminant
+    estimate = run(registry.fit("RGB-C-by-C-MMSE", default_world), batch.rgb, batch.mask).illuminant
     reference = np.stack(
         [oracle.estimate_from_posterior_3d("MMSE", p, b, illuminant_rg)[0] for p, b in oracle_3d_posteriors]
     )
@@ -219,11 +221,11 @@ SOFT = {"softness": correlation.DEFAULT_SOFTNESS, "temperature": correlation.DEF
         pytest.param("RGB-C-by-C-MAP", marks=pytest.mark.slow),
     ],
 )
-def test_soft_estimate_close_to_hard(barnard_world, batch, label):
+def test_soft_estimate_close_to_hard(default_world, batch, label):
     """At the temperature of the gradient checks, the soft estimate's median (r,g) distance to the
     hard one over 100 scenes is below 0.005."""
-    hard = registry.fit(label, barnard_world)
-    soft = registry.fit(f"soft-{label}", barnard_world, **SOFT)
+    hard = registry.fit(label, default_world)
+    soft = registry.fit(f"soft-{label}", default_world, **SOFT)
     distance = metrics.rg_error(
         run(soft, batch.rgb, batch.mask).illuminant, run(hard, batch.rgb, batch.mask).illuminant
     )
@@ -231,9 +233,9 @@ def test_soft_estimate_close_to_hard(barnard_world, batch, label):
 
 
 @pytest.mark.parametrize("label", ["soft-C-by-C-MMSE", pytest.param("soft-RGB-C-by-C-MMSE", marks=pytest.mark.slow)])
-def test_soft_gradients(barnard_world, batch, label):
+def test_soft_gradients(default_world, batch, label):
     """check_grads (x64) with respect to the input RGB and the matrix, at the soft-vs-hard settings."""
-    model = registry.fit(label, barnard_world, **SOFT)
+    model = registry.fit(label, default_world, **SOFT)
     direction = jnp.array([0.3, -0.5, 0.2])
     with jax.enable_x64(True):
         model64 = as64(model)
@@ -257,9 +259,9 @@ def test_soft_gradients(barnard_world, batch, label):
 
 
 @pytest.fixture(scope="module")
-def models(barnard_world):
+def models(default_world):
     labels = ["C-by-C-MMSE", "C-by-C-01", "RGB-C-by-C-MMSE"]
-    return {label: registry.fit(label, barnard_world) for label in labels}
+    return {label: registry.fit(label, default_world) for label in labels}
 
 
 @settings(max_examples=4, deadline=None)
@@ -289,8 +291,8 @@ def test_scale(models, batch):
         np.testing.assert_allclose(b, factor * a, rtol=1e-5, err_msg=label)
 
 
-def test_degenerate_scenes_fall_back(models, barnard_world):
-    fallback = np.asarray(barnard_world.train_whites).mean(axis=0)
+def test_degenerate_scenes_fall_back(models, default_world):
+    fallback = np.asarray(default_world.train_whites).mean(axis=0)
     # All surfaces masked (first half of the batch) or all black (second half).
     rgb = jnp.concatenate([jnp.ones((N_SCENES // 2, 8, 3)), jnp.zeros((N_SCENES // 2, 8, 3))])
     mask = jnp.concatenate([jnp.zeros((N_SCENES // 2, 8), bool), jnp.ones((N_SCENES // 2, 8), bool)])
@@ -310,29 +312,30 @@ def test_brightness_estimate_near_truth(models, batch):
 # -- labels, options, cache ------------------------------------------------------------------------
 
 
-def test_labels(barnard_world):
-    few = dataclasses.replace(barnard_world, train_illuminants=barnard_world.train_illuminants[:3])
+def test_labels(default_world):
+    few = dataclasses.replace(default_world, train_illuminants=default_world.train_illuminants[:3])
     spec = registry.fit("SPEC-RGB-C-by-C-MMSE-counts", few)
     assert (spec.method, spec.l_total, spec.selector) == ("counts", 150, "MMSE")
-    std = registry.fit("STD-RGB-C-by-C-MAP", barnard_world)
+    std = registry.fit("STD-RGB-C-by-C-MAP", default_world)
     assert (std.method, std.l_total, std.selector) == ("presence", 50, "MAP")
-    assert std.estimates_brightness and not registry.fit("C-by-C-MMSE", barnard_world).estimates_brightness
-    mlm = registry.fit("C-by-C-MLM", barnard_world, mlm_width=1.5)
-    assert mlm.mlm_width == 1.5 and mlm.mlm_mask.shape == (91, 91)
-    soft = registry.fit("soft-RGB-C-by-C-MAP", barnard_world)
+    assert std.estimates_brightness and not registry.fit("C-by-C-MMSE", default_world).estimates_brightness
+    mlm = registry.fit("C-by-C-MLM", default_world, mlm_width=1.5)
+    n_lights = default_world.train_illuminants.shape[0]
+    assert mlm.mlm_width == 1.5 and mlm.mlm_mask.shape == (n_lights, n_lights)
+    soft = registry.fit("soft-RGB-C-by-C-MAP", default_world)
     assert soft.softness == correlation.DEFAULT_SOFTNESS
 
 
-def test_mlm_width_minimises_mean_error(barnard_world):
+def test_mlm_width_minimises_mean_error(default_world):
     """The width search (§4.5.4) picks the least mean absolute (r,g) error on its validation scenes,
     and C-by-C-MLM uses the searched width."""
-    width = registry.fit("C-by-C-MLM", barnard_world).mlm_width
-    search = correlation.mlm_width_search(barnard_world)  # cached by the fit
+    width = registry.fit("C-by-C-MLM", default_world).mlm_width
+    search = correlation.mlm_width_search(default_world)  # cached by the fit
     assert width == search["best"] == search["widths"][np.argmin(search["mean_error"])]
     assert search["mean_error"].shape == (len(correlation.MLM_WIDTHS),) and np.all(np.isfinite(search["mean_error"]))
 
 
-def test_cache_round_trip(barnard_world, tmp_path, monkeypatch):
+def test_cache_round_trip(default_world, tmp_path, monkeypatch):
     monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
     calls = []
 
@@ -340,15 +343,17 @@ def test_cache_round_trip(barnard_world, tmp_path, monkeypatch):
         calls.append(1)
         return {"x": np.arange(3.0)}
 
-    first = correlation.cached("probe", barnard_world, {"a": 1}, compute)
-    second = correlation.cached("probe", barnard_world, {"a": 1}, compute)
-    correlation.cached("probe", barnard_world, {"a": 2}, compute)
+    first = correlation.cached("probe", default_world, {"a": 1}, compute)
+    second = correlation.cached("probe", default_world, {"a": 1}, compute)
+    correlation.cached("probe", default_world, {"a": 2}, compute)
     assert len(calls) == 2 and np.array_equal(first["x"], second["x"])
-    assert len(list(tmp_path.glob("correlation-probe-*.npz"))) == 2
+    # One cache for everything ccjax stores: npz + JSON record per entry, one folder per kind.
+    assert len(list(tmp_path.glob("correlation-probe/*.npz"))) == 2
+    assert len(list(tmp_path.glob("correlation-probe/*.json"))) == 2
 
 
-def test_dropped_in_matrix_is_used(barnard_world, batch):
-    model = registry.fit("C-by-C-MAP", barnard_world)
+def test_dropped_in_matrix_is_used(default_world, batch):
+    model = registry.fit("C-by-C-MAP", default_world)
     favourite = 17
     rigged = model.log_probability.at[:, favourite].add(1000.0)
     out = run(dataclasses.replace(model, log_probability=rigged), batch.rgb, batch.mask).illuminant
@@ -368,15 +373,16 @@ def test_dropped_in_matrix_is_used(barnard_world, batch):
         ("soft-C-by-C-MAP", {"temperature": 0.0}, "temperature"),
     ],
 )
-def test_invalid_options(barnard_world, label, options, argument):
+def test_invalid_options(default_world, label, options, argument):
     with pytest.raises(ValueError, match=argument):
-        registry.fit(label, barnard_world, **options)
+        registry.fit(label, default_world, **options)
 
 
 # -- thesis tables (slow) --------------------------------------------------------------------------
 
 
 @pytest.mark.slow
+@pytest.mark.external_data
 def test_table_10_2_correlation_rows(barnard_world):
     from ccjax import experiments
 

@@ -13,6 +13,7 @@ from spatial_reference import grey_edge_reference
 
 from ccjax.estimators import registry
 from ccjax.estimators.spatial import GreyEdge, fit_grey_edge
+from ccjax.world import World
 
 FALLBACK = jnp.array([0.5, 0.6, 0.7])
 
@@ -77,6 +78,9 @@ def test_special_cases_match_surface_methods():
 def test_labels_parse():
     entry, match = registry.lookup("grey-edge-1-inf-1")
     assert (match["n"], match["p"], match["sigma"]) == ("1", "inf", "1")
+    assert (entry.input_kind, entry.traceable_fit, entry.differentiable) == ("image", True, True)
+    model = registry.fit("grey-edge-1-inf-1", World.default())
+    assert (model.order, float(model.p), model.sigma) == (1, math.inf, 1.0)
     with pytest.raises(ValueError, match="method"):
         registry.lookup("grey-edge-3-1-1")
 
@@ -140,3 +144,21 @@ def test_gradients(order, p, sigma):
         check_grads(chromaticity, (x,), order=1, modes=("rev",), eps=1e-6, atol=1e-5, rtol=1e-5)
         gradient = jax.grad(lambda x: chromaticity(x)[0])(x)
         assert float(jnp.linalg.norm(gradient)) > 0
+
+
+def test_gradient_with_respect_to_the_norm():
+    """``p`` is a learnable array: d(chromaticity)/dp matches finite differences (x64), is non-zero,
+    and the jitted model (p traced) gives the eager answer."""
+    with jax.enable_x64(True):
+        image, mask = _image(3, (9, 11))
+        image, mask_j = jnp.asarray(image, jnp.float64), jnp.asarray(mask)
+        model = GreyEdge(order=1, p=jnp.asarray(4.0), sigma=1.0, fallback=jnp.asarray(FALLBACK, jnp.float64))
+
+        def chromaticity(p):
+            e = eqx.tree_at(lambda m: m.p, model, p)(image, mask_j).illuminant
+            return e / jnp.sum(e)
+
+        check_grads(chromaticity, (jnp.asarray(4.0),), order=1, modes=("rev",), eps=1e-6, atol=1e-6, rtol=1e-5)
+        assert float(jnp.linalg.norm(jax.jacrev(chromaticity)(jnp.asarray(4.0)))) > 1e-6
+        traced = jax.jit(lambda m, x, k: m(x, k))(model, image, mask_j).illuminant
+        np.testing.assert_allclose(traced, model(image, mask_j).illuminant, rtol=1e-12)

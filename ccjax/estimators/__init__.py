@@ -1,6 +1,31 @@
-"""Estimator families; see :mod:`ccjax.estimators.registry` for labels."""
+"""Estimator families; see :mod:`ccjax.estimators.registry` for labels and
+:mod:`ccjax.estimators.base` for the contract every model follows."""
 
-from ccjax.estimators.base import Estimate, Estimator, estimate_batch
-from ccjax.estimators.registry import available, fit
+from ccjax.estimators.base import (
+    AbstractEstimator,
+    AbstractImageEstimator,
+    AbstractSurfaceEstimator,
+    Estimate,
+    Estimator,
+    Status,
+    estimate_batch,
+    require_kind,
+    validate_input,
+)
+from ccjax.estimators.registry import Entry, available, fit, fit_cached
 
-__all__ = ["Estimate", "Estimator", "available", "estimate_batch", "fit"]
+__all__ = [
+    "AbstractEstimator",
+    "AbstractImageEstimator",
+    "AbstractSurfaceEstimator",
+    "Entry",
+    "Estimate",
+    "Estimator",
+    "Status",
+    "available",
+    "estimate_batch",
+    "fit",
+    "fit_cached",
+    "require_kind",
+    "validate_input",
+]

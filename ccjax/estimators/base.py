@@ -16,12 +16,22 @@ from jaxtyping import Array, Bool, Float, Int
 
 TINY = 1e-12
 
+KINDS = ("surfaces", "image")
+"""The input kinds of estimators (``AbstractEstimator.input_kind``)."""
+
+SHAPES = {"surfaces": "rgb (P, 3) with mask (P,)", "image": "image (H, W, 3) with mask (H, W)"}
+"""What one scene of each input kind is, for error messages."""
+
+_DESCRIBED = {"surfaces": "a surface estimator", "image": "an image estimator"}
+
 
 class Status(enum.IntEnum):
     """Why an :class:`Estimate` is what it is (``Estimate.status``).
 
-    ``ESTIMATED`` is the only status with ``ok=True``. ``RELAXED``: gamut mapping found no feasible
-    illuminant and answered from the first relaxed constraint level that had one (thesis §4.3.2);
+    ``ESTIMATED`` is the only status with ``ok=True``. ``RELAXED``: the method's own answer broke one
+    of its constraints and the nearest admissible answer is given instead: gamut mapping found no
+    feasible illuminant and answered from the first relaxed constraint level that had one (thesis
+    §4.3.2), the neural net predicted a chromaticity outside the triangle and it was projected in;
     ``NO_DATA``: no usable pixel (all masked, all zero), the answer is the model's fallback light;
     ``EMPTY_SET``: the method's feasible set stayed empty (every relaxation level), fallback light.
     """
@@ -84,6 +94,10 @@ class AbstractEstimator(eqx.Module):
     estimates_brightness: ClassVar[bool] = False
     block_size: ClassVar[int | None] = None
 
+    @abc.abstractmethod
+    def __call__(self, x: Float[Array, "..."], mask: Bool[Array, "..."]) -> Estimate:
+        """Estimate the light of one scene (its shape is the input kind's, see the subclasses)."""
+
 
 class AbstractSurfaceEstimator(AbstractEstimator):
     """An estimator of ONE scene given as a list of surface RGBs: ``model(rgb (P, 3), mask (P,))``."""
@@ -126,8 +140,17 @@ Estimator = AbstractEstimator
 """Deprecated alias of :class:`AbstractEstimator` (kept for one release)."""
 
 
-def estimate_batch(model: Estimator, rgb: Float[Array, "B P 3"], mask: Bool[Array, "B P"]) -> Estimate:
-    """Estimate every scene of a batch: ``jax.vmap(model)(rgb, mask)``, computed in blocks.
+def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Bool[Array, "B ..."]) -> Estimate:
+    """Estimate every scene of a batch: ``jax.vmap(model)(x, mask)``, computed in blocks.
+
+    Arguments:
+        model: a surface estimator with ``x (B, P, 3)``, ``mask (B, P)``, or an image estimator
+            with ``x (B, H, W, 3)``, ``mask (B, H, W)``.
+        x: the batch.
+        mask: True where a surface or pixel is valid.
+
+    Returns:
+        The batched :class:`Estimate`.
 
     With ``model.block_size`` set, blocks of that many scenes are vmapped and the blocks mapped
     one after another (``jax.lax.map``), so each block's intermediates stay in cache: the gamut
@@ -135,10 +158,52 @@ def estimate_batch(model: Estimator, rgb: Float[Array, "B P 3"], mask: Bool[Arra
     every stage through memory (measured 1.2-1.4x slower at 8 and 64 surfaces). The results
     are those of the plain vmap.
     """
+    kind = input_kind_of(model)
+    ndim = 3 if kind == "surfaces" else 4
+    if x.ndim != ndim or x.shape[-1] != 3 or mask.shape != x.shape[:-1]:
+        batch = "rgb (B, P, 3) with mask (B, P)" if kind == "surfaces" else "image (B, H, W, 3) with mask (B, H, W)"
+        raise ValueError(
+            f"x: {type(model).__name__} is {_DESCRIBED[kind]} and estimates batches {batch}; "
+            f"got shapes {tuple(x.shape)} and {tuple(mask.shape)}"
+        )
     size = getattr(type(model), "block_size", None)
-    if size is None or rgb.shape[0] <= size:
-        return jax.vmap(model)(rgb, mask)
-    return jax.lax.map(lambda scene: model(*scene), (rgb, mask), batch_size=size)
+    if size is None or x.shape[0] <= size:
+        return jax.vmap(model)(x, mask)
+    return jax.lax.map(lambda scene: model(*scene), (x, mask), batch_size=size)
+
+
+def input_kind_of(model) -> str:
+    """``"surfaces"`` or ``"image"``; ``ValueError`` when ``model`` is not an estimator."""
+    if not isinstance(model, AbstractEstimator):
+        raise ValueError(f"method: expected a fitted estimator (AbstractEstimator), got {type(model).__name__}")
+    return type(model).input_kind
+
+
+def require_kind(model: AbstractEstimator, kind: str, what: str) -> None:
+    """Raise a ``ValueError`` unless ``model`` takes input of ``kind``.
+
+    For callers that accept one kind only, e.g. synthetic sweeps over surface lists
+    (``require_kind(model, "surfaces", "methods")``), which cannot run image estimators.
+
+    Arguments:
+        model: a fitted estimator.
+        kind: ``"surfaces"`` or ``"image"``.
+        what: the caller's argument name, quoted first in the message.
+    """
+    if kind not in KINDS:
+        raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
+    actual = input_kind_of(model)
+    if actual == kind:
+        return
+    name = type(model).__name__
+    if actual == "image":
+        advice = "run it on images: ccjax.estimate(model, image) or the image pipeline (ccjax.images)"
+    else:
+        advice = "images reach surface estimators through the image pipeline (ccjax.images), which makes surface lists"
+    raise ValueError(
+        f"{what}: {name} is {_DESCRIBED[actual]} ({SHAPES[actual]}), but this needs "
+        f"{_DESCRIBED[kind]} ({SHAPES[kind]}); {advice}"
+    )
 
 
 def pairwise_reduce(values: Float[Array, "P ..."], op) -> Float[Array, "..."]:
@@ -164,8 +229,37 @@ def with_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, 
     return Estimate(illuminant=safe, ok=usable)
 
 
+def _checked_values(x, name: str, shapes: tuple[str, str], ndims: tuple[int, int]) -> np.ndarray:
+    """``x`` as float32 after the checks common to every input kind; ``ndims`` are the ranks of
+    one scene and of a batch (their difference is 1, the pixel axes are ``ndims[0] - 1``)."""
+    array = np.asarray(x)
+    if array.dtype == object or not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
+        raise ValueError(f"{name}: expected a real numeric array, got dtype {array.dtype}")
+    if array.ndim not in ndims or array.shape[-1] != 3:
+        raise ValueError(f"{name}: expected shape {' or '.join(shapes)}, got {array.shape}")
+    if 0 in array.shape[-ndims[0] : -1]:
+        raise ValueError(f"{name}: has no pixels (shape {array.shape}); pass a mask to mark missing data instead")
+    array = array.astype(np.float32)
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name}: contains NaN or infinite values")
+    if np.any(array < 0):
+        raise ValueError(f"{name}: contains negative values (linear camera RGB is non-negative)")
+    return array
+
+
+def _checked_mask(mask, shape: tuple[int, ...]) -> np.ndarray:
+    if mask is None:
+        return np.ones(shape, bool)
+    mask_array = np.asarray(mask)
+    if mask_array.dtype != bool:
+        raise ValueError(f"mask: expected a boolean array, got dtype {mask_array.dtype}")
+    if mask_array.shape != shape:
+        raise ValueError(f"mask: expected shape {shape}, got {mask_array.shape}")
+    return mask_array
+
+
 def validate_scene(rgb, mask, *, name: str = "rgb") -> tuple[np.ndarray, np.ndarray]:
-    """Check estimator input at the Python boundary; raise ``ValueError`` naming the argument.
+    """Check surface-list input at the Python boundary; raise ``ValueError`` naming the argument.
 
     Arguments:
         rgb: ``(P, 3)`` or ``(B, P, 3)`` non-negative finite floats.
@@ -174,24 +268,54 @@ def validate_scene(rgb, mask, *, name: str = "rgb") -> tuple[np.ndarray, np.ndar
     Returns:
         ``(rgb, mask)`` as NumPy float32 / bool arrays.
     """
-    array = np.asarray(rgb)
-    if array.dtype == object or not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
-        raise ValueError(f"{name}: expected a real numeric array, got dtype {array.dtype}")
-    if array.ndim not in (2, 3) or array.shape[-1] != 3:
-        raise ValueError(f"{name}: expected shape (P, 3) or (B, P, 3), got {array.shape}")
-    if array.shape[-2] == 0:
-        raise ValueError(f"{name}: has no pixels (P = 0); pass a mask to mark missing data instead")
-    array = array.astype(np.float32)
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name}: contains NaN or infinite values")
-    if np.any(array < 0):
-        raise ValueError(f"{name}: contains negative values (linear camera RGB is non-negative)")
-    if mask is None:
-        mask_array = np.ones(array.shape[:-1], bool)
-    else:
-        mask_array = np.asarray(mask)
-        if mask_array.dtype != bool:
-            raise ValueError(f"mask: expected a boolean array, got dtype {mask_array.dtype}")
-        if mask_array.shape != array.shape[:-1]:
-            raise ValueError(f"mask: expected shape {array.shape[:-1]}, got {mask_array.shape}")
-    return array, mask_array
+    array = _checked_values(rgb, name, ("(P, 3)", "(B, P, 3)"), (2, 3))
+    return array, _checked_mask(mask, array.shape[:-1])
+
+
+def validate_image(image, mask, *, name: str = "image") -> tuple[np.ndarray, np.ndarray]:
+    """Check image input at the Python boundary; raise ``ValueError`` naming the argument.
+
+    Arguments:
+        image: ``(H, W, 3)`` or ``(B, H, W, 3)`` non-negative finite floats.
+        mask: ``None`` (all valid) or booleans of shape ``image.shape[:-1]``.
+
+    Returns:
+        ``(image, mask)`` as NumPy float32 / bool arrays.
+    """
+    array = _checked_values(image, name, ("(H, W, 3)", "(B, H, W, 3)"), (3, 4))
+    return array, _checked_mask(mask, array.shape[:-1])
+
+
+def validate_input(model: AbstractEstimator, x, mask, *, name: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Check ``x`` against what ``model`` takes (its input kind); raise ``ValueError`` naming the
+    argument, the estimator, its kind and what to pass.
+
+    Arguments:
+        model: a fitted estimator.
+        x: ``(P, 3)`` / ``(B, P, 3)`` for surface estimators, ``(H, W, 3)`` / ``(B, H, W, 3)`` for
+            image estimators.
+        mask: ``None`` or booleans of shape ``x.shape[:-1]``.
+        name: the argument's name in messages (default ``"rgb"`` for surface estimators,
+            ``"image"`` for image estimators).
+
+    Returns:
+        ``(x, mask)`` as NumPy float32 / bool arrays.
+    """
+    kind = input_kind_of(model)
+    name = name or ("rgb" if kind == "surfaces" else "image")
+    ndim = np.ndim(x)
+    if kind == "image" and ndim == 2:
+        raise ValueError(
+            f"{name}: {type(model).__name__} is an image estimator and takes {SHAPES['image']} "
+            f"(or a batch (B, H, W, 3)); got a surface list of shape {np.shape(x)}. Pass the image itself, "
+            "or use a surface estimator for surface lists"
+        )
+    if kind == "surfaces" and ndim == 4:
+        raise ValueError(
+            f"{name}: {type(model).__name__} is a surface estimator and takes {SHAPES['surfaces']} "
+            f"(or a batch (B, P, 3)); got shape {np.shape(x)}, a batch of images. Images reach surface "
+            "estimators through the image pipeline (ccjax.images)"
+        )
+    if kind == "image":
+        return validate_image(x, mask, name=name)
+    return validate_scene(x, mask, name=name)

@@ -7,12 +7,14 @@ scene has no usable data (spec ch02-04 §10 item 27).
 
 from __future__ import annotations
 
+import typing
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, Estimate, Estimator, pairwise_reduce, with_fallback
+from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, pairwise_reduce, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -22,16 +24,19 @@ def average_illuminant(world: World) -> Float[Array, "3"]:
     return jnp.mean(world.train_whites, axis=0)
 
 
-class Constant(Estimator):
+@typing.final
+class Constant(AbstractSurfaceEstimator):
     """A scene-independent estimate: NOTHING (the canonical white) or AVE-ILLUM (§4.5)."""
 
     illuminant: Float[Array, "3"]
 
-    def __call__(self, rgb, mask) -> Estimate:
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
+        # A constant needs no data: an empty scene is no reason to report a fallback.
         return Estimate(illuminant=self.illuminant, ok=jnp.asarray(True))
 
 
-class GreyWorld(Estimator):
+@typing.final
+class GreyWorld(AbstractSurfaceEstimator):
     """Grey world, ``w = mean(rho) * (w_C / g_C)`` (§4.5.1, eq. 5.5).
 
     ``scale = w_C / g_C``: 2 for GW (grey = 50 % reflectance), the canonical white over the
@@ -49,7 +54,8 @@ class GreyWorld(Estimator):
         return with_fallback(mean * self.scale, count > 0, self.fallback)
 
 
-class ShadesOfGrey(Estimator):
+@typing.final
+class ShadesOfGrey(AbstractSurfaceEstimator):
     """Shades of grey (Finlayson & Trezzi 2004): ``w = 2 * (mean(rho^p))^(1/p)`` per channel.
 
     The factor 2 is grey world's, so ``p = 1`` is exactly GW; as ``p -> inf`` the chromaticity
@@ -78,28 +84,31 @@ class ShadesOfGrey(Estimator):
         return Estimate(illuminant=illuminant, ok=usable)
 
 
-class MaxRGB(Estimator):
+@typing.final
+class MaxRGB(AbstractSurfaceEstimator):
     """RETINEX in its limiting form, per-channel maximum ``w_k = max_i rho_ik`` (§4.5.2).
 
     With ``temperature`` set, a soft maximum ``t * logsumexp(rho / t)`` over valid pixels gives
-    gradients to every pixel (DESIGN.md §5); it tends to the hard maximum as ``t -> 0``.
+    gradients to every pixel; it tends to the hard maximum as ``t -> 0``.
     """
 
     fallback: Float[Array, "3"]
-    temperature: float | None = None
+    temperature: Float[Array, ""] | None = None
     estimates_brightness = True
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
         if self.temperature is None:
             maximum = pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum)
-        else:
-            t = self.temperature
-            scaled = jnp.where(mask[:, None], rgb / t, 0.0)
-            top = jax.lax.stop_gradient(jnp.max(scaled, axis=0))
-            total = jnp.sum(jnp.where(mask[:, None], jnp.exp(scaled - top), 0.0), axis=0)
-            maximum = t * (top + jnp.log(jnp.maximum(total, TINY)))
-        return with_fallback(maximum, count > 0, self.fallback)
+            return with_fallback(maximum, count > 0, self.fallback)
+        t = self.temperature
+        scaled = jnp.where(mask[:, None], rgb / t, 0.0)
+        top = jax.lax.stop_gradient(jnp.max(scaled, axis=0))
+        total = jnp.sum(jnp.where(mask[:, None], jnp.exp(scaled - top), 0.0), axis=0)
+        maximum = t * (top + jnp.log(jnp.maximum(total, TINY)))
+        # The soft maximum of an all-black scene is t log(P) > 0: demand a lit pixel, as the hard one does.
+        lit = jnp.sum(top) * t > TINY
+        return with_fallback(maximum, (count > 0) & lit, self.fallback)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -126,7 +135,10 @@ def fit_db_gw(world: World) -> GreyWorld:
 def fit_retinex(world: World, temperature: float | None = None) -> MaxRGB:
     if temperature is not None and not temperature > 0:
         raise ValueError(f"temperature: expected a positive number or None, got {temperature!r}")
-    return MaxRGB(fallback=average_illuminant(world), temperature=temperature)
+    fallback = average_illuminant(world)
+    # An array, not a Python float: the temperature is a (learnable) number, not configuration.
+    t = None if temperature is None else jnp.asarray(temperature, fallback.dtype)
+    return MaxRGB(fallback=fallback, temperature=t)
 
 
 def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
@@ -138,16 +150,69 @@ def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
 # ---------------------------------------------------------------------------------------------
 # labels
 
-register(r"NOTHING", "NOTHING", "assume the canonical light (§4.5)")(lambda w, m, **o: fit_nothing(w, **o))
-register(r"AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)")(lambda w, m, **o: fit_ave_illum(w, **o))
-register(r"GW", "GW", "grey world, 2 x mean RGB (§4.5.1)")(lambda w, m, **o: fit_gw(w, **o))
-register(r"DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)")(lambda w, m, **o: fit_db_gw(w, **o))
-register(r"RETINEX|MAX-RGB|max-rgb", "RETINEX", "per-channel maximum (§4.5.2)")(lambda w, m, **o: fit_retinex(w, **o))
-register(
+
+@register(r"NOTHING", example="NOTHING", description="assume the canonical light (§4.5)", traceable_fit=True)
+def _build_nothing(world, match, **options):
+    return fit_nothing(world, **options)
+
+
+@register(r"AVE-ILLUM", example="AVE-ILLUM", description="mean of the training illuminants (§4.5)", traceable_fit=True)
+def _build_ave_illum(world, match, **options):
+    return fit_ave_illum(world, **options)
+
+
+@register(
+    r"GW",
+    example="GW",
+    description="grey world, 2 x mean RGB (§4.5.1)",
+    traceable_fit=True,
+    differentiable=True,
+)
+def _build_gw(world, match, **options):
+    return fit_gw(world, **options)
+
+
+@register(
+    r"DB-GW",
+    example="DB-GW",
+    description="grey world with the database mean as grey (§4.5.1)",
+    traceable_fit=True,
+    differentiable=True,
+)
+def _build_db_gw(world, match, **options):
+    return fit_db_gw(world, **options)
+
+
+@register(
+    r"RETINEX|MAX-RGB|max-rgb",
+    grammar="RETINEX | MAX-RGB | max-rgb",
+    example="RETINEX",
+    description="per-channel maximum (§4.5.2)",
+    traceable_fit=True,
+)
+def _build_retinex(world, match, **options):
+    return fit_retinex(world, **options)
+
+
+@register(
     r"soft-RETINEX-t(?P<t>\d+(\.\d+)?(e-?\d+)?)",
-    "soft-RETINEX-t0.01",
-    "soft maximum with temperature t (differentiable)",
-)(lambda w, m, **o: fit_retinex(w, temperature=float(m["t"]), **o))
-register(
-    r"shades-of-grey-p(?P<p>\d+(\.\d+)?)", "shades-of-grey-p6", "Minkowski p-norm grey world (Finlayson & Trezzi)"
-)(lambda w, m, **o: fit_shades_of_grey(w, p=float(m["p"]), **o))
+    grammar="soft-RETINEX-t<T>",
+    example="soft-RETINEX-t0.01",
+    description="soft maximum with temperature T (differentiable)",
+    traceable_fit=True,
+    differentiable=True,
+)
+def _build_soft_retinex(world, match, **options):
+    return fit_retinex(world, temperature=float(match["t"]), **options)
+
+
+@register(
+    r"shades-of-grey-p(?P<p>\d+(\.\d+)?)",
+    grammar="shades-of-grey-p<P>",
+    example="shades-of-grey-p6",
+    description="Minkowski p-norm grey world (Finlayson & Trezzi)",
+    traceable_fit=True,
+    differentiable=True,
+)
+def _build_shades_of_grey(world, match, **options):
+    return fit_shades_of_grey(world, p=float(match["p"]), **options)

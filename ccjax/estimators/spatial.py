@@ -1,7 +1,7 @@
 """Image-only estimators: the grey-edge family (van de Weijer, Gevers & Gijsenij 2007).
 
 Not in the thesis (Barnard 1999 works on surface lists); these need the spatial layout, so they
-take an image ``(H, W, 3)`` with a pixel mask ``(H, W)`` (DESIGN.md §2, ``input_kind = "image"``).
+take an image ``(H, W, 3)`` with a pixel mask ``(H, W)`` (``input_kind = "image"``).
 
 Definition (the general grey-world / grey-edge hypothesis). For each channel ``c``:
 
@@ -27,13 +27,15 @@ with respect to the pixels work.
 from __future__ import annotations
 
 import math
+import typing
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
+from ccjax.estimators.base import TINY, AbstractImageEstimator, Estimate, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
 from ccjax.world import World
@@ -148,38 +150,55 @@ def valid_positions(mask: Bool[Array, "H W"], radius: int) -> Bool[Array, "H W"]
     return mask
 
 
-def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: float) -> Float[Array, "3"]:
+def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: Float[Array, ""]) -> Float[Array, "3"]:
     """``(mean over valid of values^p)^(1/p)`` per channel plane (non-negative values; ``p = inf``:
-    the maximum)."""
+    the maximum). ``p`` is an array, so it can be traced and learned.
+
+    Arguments:
+        values: ``(3, H, W)`` non-negative responses.
+        valid: ``(H, W)`` positions that count.
+        p: the Minkowski norm, ``>= 1`` or ``inf``.
+
+    Returns:
+        ``(3,)`` the norms.
+    """
     weights = valid[None]
-    if math.isinf(p):
-        return jnp.max(jnp.where(weights, values, 0.0), axis=(1, 2))
+    p = jnp.asarray(p, values.dtype)
+    infinite = jnp.isinf(p)
+    maximum = jnp.max(jnp.where(weights, values, 0.0), axis=(1, 2))
+    finite_p = jnp.where(infinite, 1.0, p)  # the finite branch must stay finite (and its gradient)
     count = jnp.maximum(jnp.sum(valid), 1)
     # Divide by the peak first so values^p neither overflows nor underflows for large p.
-    peak = jax.lax.stop_gradient(jnp.max(jnp.where(weights, values, 0.0)))
+    peak = jax.lax.stop_gradient(jnp.max(maximum))
     peak = jnp.where(peak > TINY, peak, 1.0)
     scaled = jnp.where(weights, values / peak, 0.0)
-    # An integer p is a few multiplications; a fractional one needs exp(p log x) (and x = 0 guarded).
-    exponent = int(p) if float(p).is_integer() else p
-    powered = jnp.where(weights & (scaled > 0), jnp.where(scaled > 0, scaled, 1.0) ** exponent, 0.0)
+    positive_scaled = weights & (scaled > 0)
+    powered = jnp.where(positive_scaled, jnp.where(positive_scaled, scaled, 1.0) ** finite_p, 0.0)
     mean = jnp.sum(powered, axis=(1, 2)) / count
     positive = mean > 0
-    return peak * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / p), 0.0)
+    norm = peak * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / finite_p), 0.0)
+    return jnp.where(infinite, maximum, norm)
 
 
-class GreyEdge(Estimator):
+@typing.final
+class GreyEdge(AbstractImageEstimator):
     """Grey edge of order ``n``, Minkowski norm ``p`` and scale ``sigma`` (module docstring).
 
     Call it on one image: ``model(image (H, W, 3), mask (H, W)) -> Estimate``; ``jax.vmap`` it over
     ``(B, H, W, 3)`` batches. Falls back (``ok=False``) to the world's average training illuminant
     when no position is valid or every edge is zero (a flat image has no edges).
+
+    Attributes:
+        p: the Minkowski norm (an array: it can be learned; ``inf`` is the maximum).
+        fallback: ``(3,)`` estimate for images without usable edges.
+        order: derivative order 0, 1 or 2 (static: it selects the filters).
+        sigma: Gaussian scale in pixels (static: it sets the filter taps).
     """
 
-    order: int
-    p: float
-    sigma: float
+    p: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     fallback: Float[Array, "3"]
-    input_kind = "image"
+    order: int = eqx.field(static=True)
+    sigma: float = eqx.field(static=True)
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
         planes = jnp.moveaxis(image, -1, 0)  # channel-first: the layout XLA's CPU code filters fastest
@@ -207,15 +226,22 @@ def fit_grey_edge(world: World, order: int = 1, p: float = 6.0, sigma: float = 2
         raise ValueError(f"p: expected a Minkowski norm >= 1 or inf, got {p!r}")
     if not (sigma >= 0 and math.isfinite(sigma)):
         raise ValueError(f"sigma: expected a finite scale >= 0, got {sigma!r}")
-    return GreyEdge(order=int(order), p=float(p), sigma=float(sigma), fallback=average_illuminant(world))
+    fallback = average_illuminant(world)
+    return GreyEdge(p=jnp.asarray(p, fallback.dtype), fallback=fallback, order=int(order), sigma=float(sigma))
 
 
 def _number(text: str) -> float:
     return math.inf if text == "inf" else float(text)
 
 
-register(
+@register(
     r"grey-edge-(?P<n>[012])-(?P<p>inf|\d+(\.\d+)?)-(?P<sigma>\d+(\.\d+)?)",
-    "grey-edge-1-6-2",
-    "grey edge n-p-sigma (van de Weijer 2007; image input)",
-)(lambda w, m, **o: fit_grey_edge(w, order=int(m["n"]), p=_number(m["p"]), sigma=float(m["sigma"]), **o))
+    grammar="grey-edge-<n>-<p>-<sigma> (n in 0, 1, 2; p a number or inf)",
+    example="grey-edge-1-6-2",
+    description="grey edge n-p-sigma (van de Weijer 2007; image input)",
+    input_kind="image",
+    traceable_fit=True,
+    differentiable=True,
+)
+def _build_grey_edge(world, match, **options):
+    return fit_grey_edge(world, order=int(match["n"]), p=_number(match["p"]), sigma=float(match["sigma"]), **options)

@@ -2,7 +2,7 @@
 1997) and the 3-D (r, g, L) method of chapter 10, with soft (differentiable) variants.
 
 A correlation matrix holds, per training illuminant, the log-probability of observing a colour cell
-(spec ch02-04 §6.5, ch08-12 §4). It is computed once by a ``*_matrix`` function of the world (NumPy,
+(§4.5.4, §10.2). It is computed once by a ``*_matrix`` function of the world (NumPy,
 :mod:`.matrices`) and stored in the fitted model as a plain array, so a matrix learned by gradient
 descent can be dropped in (``dataclasses.replace(model, log_probability=learned)``). ccjax stores the
 thesis' matrix transposed, one column per training illuminant, ``log_probability (cells, I)``: a
@@ -56,8 +56,10 @@ from ccjax.estimators.registry import register
 
 @register(
     r"(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE|MLM)",
-    "C-by-C-MMSE",
-    "Colour by Correlation in (r,g): MAP, MMSE, MLM (§4.5.4)",
+    grammar="[SPEC-]C-by-C-(MAP|MMSE|MLM)",
+    example="C-by-C-MMSE",
+    description="Colour by Correlation in (r,g): MAP, MMSE, MLM (§4.5.4)",
+    input_kind="surfaces",
 )
 def _build_chromaticity(world, match, **options):
     if match["spec"]:
@@ -65,15 +67,22 @@ def _build_chromaticity(world, match, **options):
     return fit_chromaticity(world, match["selector"], **options)
 
 
-@register(r"C-by-C-01", "C-by-C-01", "Colour by Correlation with the 0/1 hull matrix (§4.5.4)")
+@register(
+    r"C-by-C-01",
+    example="C-by-C-01",
+    description="Colour by Correlation with the 0/1 hull matrix (§4.5.4)",
+    input_kind="surfaces",
+)
 def _build_hull(world, match, **options):
     return fit_hull(world, **options)
 
 
 @register(
     r"(?P<prefix>STD-|SPEC-)?RGB-C-by-C-(?P<selector>MAP|MMSE)(-(?P<method>counts|presence))?",
-    "RGB-C-by-C-MMSE",
-    "3-D Colour by Correlation in (r,g,L), brightness too (ch. 10); -counts: remedy 1",
+    grammar="[STD-|SPEC-]RGB-C-by-C-(MAP|MMSE)[-counts|-presence]",
+    example="RGB-C-by-C-MMSE",
+    description="3-D Colour by Correlation in (r,g,L), brightness too (ch. 10); -counts: remedy 1",
+    input_kind="surfaces",
 )
 def _build_brightness(world, match, **options):
     if match["prefix"] == "SPEC-":
@@ -83,8 +92,11 @@ def _build_brightness(world, match, **options):
 
 @register(
     r"soft-(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE)",
-    "soft-C-by-C-MMSE",
-    "differentiable 2-D Colour by Correlation (soft bins, softmax posterior)",
+    grammar="soft-[SPEC-]C-by-C-(MAP|MMSE)",
+    example="soft-C-by-C-MMSE",
+    description="differentiable 2-D Colour by Correlation (soft bins, softmax posterior)",
+    input_kind="surfaces",
+    differentiable=True,
 )
 def _build_soft_chromaticity(world, match, **options):
     if match["spec"]:
@@ -95,8 +107,11 @@ def _build_soft_chromaticity(world, match, **options):
 
 @register(
     r"soft-(?P<prefix>STD-|SPEC-)?RGB-C-by-C-(?P<selector>MAP|MMSE)(-(?P<method>counts|presence))?",
-    "soft-RGB-C-by-C-MMSE",
-    "differentiable 3-D Colour by Correlation (soft bins, softmax posterior)",
+    grammar="soft-[STD-|SPEC-]RGB-C-by-C-(MAP|MMSE)[-counts|-presence]",
+    example="soft-RGB-C-by-C-MMSE",
+    description="differentiable 3-D Colour by Correlation (soft bins, softmax posterior)",
+    input_kind="surfaces",
+    differentiable=True,
 )
 def _build_soft_brightness(world, match, **options):
     if match["prefix"] == "SPEC-":

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from ccjax._colour import rg, rg_bin, rg_numpy
 from ccjax.estimators.base import TINY
 
 RG_BINS = 50
@@ -21,16 +22,14 @@ def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Arra
 
 
 def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:
-    """(r,g) bin coordinates ``floor(50 r), floor(50 g)`` clipped to ``0..49`` (§4.5.4)."""
-    total = jnp.sum(rgb, axis=-1, keepdims=True)
-    rg = rgb[..., :2] / jnp.where(total > TINY, total, 1.0)
-    return jnp.clip(jnp.floor(rg * RG_BINS), 0, RG_BINS - 1).astype(jnp.int32)
+    """(r,g) bin coordinates ``floor(50 r), floor(50 g)`` clipped to ``0..49`` (§4.5.4); a black
+    pixel lands in the achromatic bin (the kernels ignore black pixels)."""
+    return rg_bin(rg(rgb), RG_BINS)
 
 
 def rg_bins_np(rgb: np.ndarray) -> np.ndarray:
-    total = rgb.sum(axis=-1, keepdims=True)
-    rg = rgb[..., :2] / np.where(total > 0, total, 1.0)
-    return np.clip(np.floor(rg * RG_BINS), 0, RG_BINS - 1).astype(np.int64)
+    """:func:`rg_bins` in NumPy at the input's precision (fit time), as int64."""
+    return np.clip(np.floor(rg_numpy(rgb) * RG_BINS), 0, RG_BINS - 1).astype(np.int64)
 
 
 def compact_rg_cells() -> np.ndarray:
@@ -101,9 +100,9 @@ def soft_presence_scores(
 ) -> Float[Array, " I"]:
     """Differentiable :func:`presence_scores`: each pixel spreads over the 2 x 2 bins around it
     (:func:`soft_axis`), bins are present with probability ``1 - prod(1 - w)``."""
-    total = jnp.sum(rgb, axis=-1, keepdims=True)
-    rg = rgb[..., :2] / jnp.where(total > TINY, total, 1.0) * RG_BINS
-    (ri, rw), (gi, gw) = soft_axis(rg[:, 0], softness), soft_axis(rg[:, 1], softness)
+    # Black pixels sit at the achromatic point; their weights are zeroed by ``valid``.
+    scaled = rg(rgb) * RG_BINS
+    (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
     ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
     cells = (ri[:, :, None] * RG_BINS + gi[:, None, :]).reshape(-1)
     weights = (rw[:, :, None] * gw[:, None, :] * valid[:, None, None]).reshape(-1)

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import typing
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, Estimate, Estimator, with_fallback
+from ccjax._colour import rg as chromaticity_of
+from ccjax._colour import rg_to_rgb
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import (
     RG_BINS,
     compact_rg_cells,
@@ -26,11 +30,14 @@ from ccjax.estimators.correlation.fitting import (
 )
 from ccjax.estimators.correlation.matrices import BRIGHTNESS_SIGMA, brightness_matrix
 from ccjax.estimators.simple import average_illuminant
-from ccjax.metrics import rg_to_rgb
 from ccjax.world import World
 
+RG_CELLS = compact_rg_cells().astype(np.int32)
+"""The compact (r,g) cell of each of the 2500 (r,g) bins (a constant of the binning, not fitted)."""
 
-class ColourByCorrelation3D(Estimator):
+
+@typing.final
+class ColourByCorrelation3D(AbstractSurfaceEstimator):
     """Colour by Correlation in (r, g, L) (chapter 10, §10.1–10.2; spec ch08-12 §4).
 
     Every (training illuminant ``i``, brightness ``b_q``) pair is a hypothesis. ``B0 = 4.3 x
@@ -46,7 +53,6 @@ class ColourByCorrelation3D(Estimator):
     """
 
     log_probability: Float[Array, "C I"]
-    rg_cells: Int[Array, "2500"]
     illuminant_rg: Float[Array, "I 2"]
     fallback: Float[Array, "3"]
     l_bins: int = eqx.field(static=True, default=50)
@@ -74,7 +80,7 @@ class ColourByCorrelation3D(Estimator):
         """The function ``ratio -> (I,)`` scores of the level ``b = initial * ratio``."""
         outside = self.log_probability.shape[0] - 1
         bins = rg_bins(rgb)
-        rg_cell = self.rg_cells[bins[:, 0] * RG_BINS + bins[:, 1]]
+        rg_cell = jnp.asarray(RG_CELLS)[bins[:, 0] * RG_BINS + bins[:, 1]]
         # Sort pixels by (cell, L, R, G), invalid last: at every level, pixels sharing a 3-D cell
         # are then adjacent (same rg cell, L-bins non-decreasing), and so are exact duplicates.
         key = jnp.where(valid, rg_cell, jnp.iinfo(jnp.int32).max)
@@ -103,16 +109,17 @@ class ColourByCorrelation3D(Estimator):
         return step
 
     def _soft_level_scores(self, rgb, valid, brightness, initial):
+        softness = self.softness
+        assert softness is not None, "soft scores of a hard model"
         outside = self.log_probability.shape[0] - 1
-        total = jnp.where(brightness > TINY, brightness, 1.0)
-        rg = rgb[:, :2] / total[:, None] * RG_BINS
-        (ri, rw), (gi, gw) = soft_axis(rg[:, 0], self.softness), soft_axis(rg[:, 1], self.softness)
+        scaled = chromaticity_of(rgb) * RG_BINS  # black pixels (achromatic point) get zero weight through ``valid``
+        (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
         ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
-        rg_cell = self.rg_cells[ri[:, :, None] * RG_BINS + gi[:, None, :]]  # (P, 2, 2)
+        rg_cell = jnp.asarray(RG_CELLS)[ri[:, :, None] * RG_BINS + gi[:, None, :]]  # (P, 2, 2)
         rg_weight = rw[:, :, None] * gw[:, None, :] * valid[:, None, None]
 
         def step(ratio):
-            li, lw = soft_axis(brightness / (initial * ratio) * self.l_bins, self.softness)
+            li, lw = soft_axis(brightness / (initial * ratio) * self.l_bins, softness)
             li = jnp.maximum(li, 0)
             inside = (rg_cell[..., None] >= 0) & (li[:, None, None, :] < self.l_total)
             cell = jnp.where(inside, rg_cell[..., None] * self.l_total + li[:, None, None, :], outside).reshape(-1)
@@ -150,21 +157,22 @@ class ColourByCorrelation3D(Estimator):
         hard_map = self.selector == "MAP" and self.softness is None
         inverse_t = 1.0 if self.selector == "MMSE" else 1.0 / self.temperature
 
-        def step(carry, ratio):
+        def hard_step(carry, ratio):
+            best, best_rg, best_b = carry
             score = level_scores(ratio)
-            if hard_map:
-                best, best_rg, best_b = carry
-                top = jnp.argmax(score)
-                better = score[top] > best
-                carry = (
-                    jnp.where(better, score[top], best),
-                    jnp.where(better, self.illuminant_rg[top], best_rg),
-                    jnp.where(better, ratio, best_b),
-                )
-                return carry, None
+            top = jnp.argmax(score)
+            better = score[top] > best
+            carry = (
+                jnp.where(better, score[top], best),
+                jnp.where(better, self.illuminant_rg[top], best_rg),
+                jnp.where(better, ratio, best_b),
+            )
+            return carry, None
+
+        def soft_step(carry, ratio):
             # Online softmax over (illuminant, level): running max, normaliser and weighted sums.
             peak, norm, mean_rg, mean_b = carry
-            score = score * inverse_t
+            score = level_scores(ratio) * inverse_t
             new_peak = jnp.maximum(peak, jnp.max(score))
             decay = jnp.exp(peak - new_peak)
             weight = jnp.exp(score - new_peak)
@@ -180,10 +188,10 @@ class ColourByCorrelation3D(Estimator):
         dtype = self.illuminant_rg.dtype
         if hard_map:
             init = (jnp.array(-jnp.inf, dtype), jnp.zeros(2, dtype), jnp.array(1.0, dtype))
-            (_, rg, ratio), _ = jax.lax.scan(step, init, relative)
+            (_, rg, ratio), _ = jax.lax.scan(hard_step, init, relative)
         else:
             init = (jnp.array(-jnp.inf, dtype), jnp.array(0.0, dtype), jnp.zeros(2, dtype), jnp.array(0.0, dtype))
-            (_, norm, sum_rg, sum_b), _ = jax.lax.scan(step, init, relative)
+            (_, norm, sum_rg, sum_b), _ = jax.lax.scan(soft_step, init, relative)
             rg, ratio = sum_rg / norm, sum_b / norm
         illuminant = initial * ratio * rg_to_rgb(rg)
         return with_fallback(illuminant, jnp.any(valid), self.fallback)
@@ -257,7 +265,6 @@ def fit_brightness(
     stored = cached("rgb-matrix", world, options, compute)
     return ColourByCorrelation3D(
         log_probability=jnp.asarray(stored["log_probability"]),
-        rg_cells=jnp.asarray(compact_rg_cells(), jnp.int32),
         illuminant_rg=illuminant_rg_of(world),
         fallback=average_illuminant(world),
         l_bins=l_bins,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import typing
 
 import equinox as eqx
 import jax
@@ -10,7 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import Estimate, Estimator, with_fallback
+from ccjax._colour import rg_numpy, rg_to_rgb
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores, valid_pixels
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
@@ -21,11 +23,11 @@ from ccjax.estimators.correlation.fitting import (
 )
 from ccjax.estimators.correlation.matrices import chromaticity_matrix, hull_matrix
 from ccjax.estimators.simple import average_illuminant
-from ccjax.metrics import rg_to_rgb
 from ccjax.world import World
 
 
-class ColourByCorrelation(Estimator):
+@typing.final
+class ColourByCorrelation(AbstractSurfaceEstimator):
     """2-D Colour by Correlation with a probabilistic matrix (§4.5.4, eqs. 4.2–4.5).
 
     The scene's bins select matrix rows whose sum is the log-likelihood of each training illuminant;
@@ -69,14 +71,17 @@ class ColourByCorrelation(Estimator):
         elif self.selector == "MAP":
             rg = self.illuminant_rg[jnp.argmax(posterior)]
         else:  # MLM
+            assert self.mlm_mask is not None, "fit_chromaticity sets the MLM mask"
             rg = self.illuminant_rg[jnp.argmax(self.mlm_mask @ posterior)]
         return with_fallback(rg_to_rgb(rg), jnp.any(valid_pixels(rgb, mask)), self.fallback)
 
 
-class ColourByCorrelation01(Estimator):
+@typing.final
+class ColourByCorrelation01(AbstractSurfaceEstimator):
     """C-by-C-01 (§4.5.4): a 0/1 matrix from the convex hulls of the reflectances' (r,g); an
     illuminant's score is the number of scene bins consistent with it; the estimate is the mean
-    (r,g) of the illuminants whose score is within ``tolerance`` of the maximum (DESIGN.md §10)."""
+    (r,g) of the illuminants whose score is within ``tolerance`` of the maximum (by default those
+    within 1 of it)."""
 
     compatible: Float[Array, "C I"]
     illuminant_rg: Float[Array, "I 2"]
@@ -193,7 +198,7 @@ def tune_mlm_width(
         rgb = rgb + (shiny * rng.uniform(0.0, specular.max_amount, rgb.shape[:2]))[..., None] * whites[:, None, :]
     rgb = jnp.asarray(rgb, jnp.float32)
     posterior = jnp.exp(jax.jit(jax.vmap(model.log_posterior))(rgb, jnp.ones(rgb.shape[:2], bool)))
-    truth = jnp.asarray(whites[:, :2] / whites.sum(axis=1, keepdims=True), jnp.float32)
+    truth = jnp.asarray(rg_numpy(whites), jnp.float32)
     mean_error = []
     for width in widths:
         choice = jnp.argmax(posterior @ mlm_mask(model.illuminant_rg, width).T, axis=1)

@@ -1,18 +1,14 @@
-"""Fit-time helpers of the Colour by Correlation family: the on-disk cache of slow fits (DESIGN.md
-§2), option checks and defaults."""
+"""Fit-time helpers of the Colour by Correlation family: the on-disk cache of slow fits, option
+checks and defaults."""
 
 from __future__ import annotations
-
-import hashlib
-import json
-import os
-import tempfile
-from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ccjax._cache import cached_arrays, content_key
+from ccjax._colour import rg_numpy
 from ccjax.scenes import Specular
 from ccjax.world import World
 
@@ -23,55 +19,29 @@ DEFAULT_TEMPERATURE = 0.05
 """Soft MAP: softmax of the log-posterior divided by this (-> MAP as it -> 0)."""
 
 
-def _cache_dir() -> Path:
-    root = os.environ.get("CCJAX_CACHE")
-    if root:
-        return Path(root)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "ccjax"
-
-
-def _world_digest(world: World) -> str:
-    digest = hashlib.sha256()
-    for array in (
-        world.reflectances,
-        world.train_illuminants,
-        world.test_illuminants,
-        world.canonical,
-        world.camera.sensors,
-    ):
-        values = np.ascontiguousarray(np.asarray(array, np.float32))
-        digest.update(str(values.shape).encode())
-        digest.update(values.tobytes())
-    return digest.hexdigest()
-
-
 def cached(kind: str, world: World, options: dict, compute) -> dict[str, np.ndarray]:
-    """Load ``compute()``'s arrays for (``kind``, world, options) from the cache, else compute and
-    store them (``$CCJAX_CACHE``, else ``$XDG_CACHE_HOME/ccjax`` or ``~/.cache/ccjax``)."""
-    text = json.dumps({"kind": kind, "version": _CACHE_VERSION, "options": options}, sort_keys=True, default=str)
-    key = hashlib.sha256((text + _world_digest(world)).encode()).hexdigest()[:20]
-    path = _cache_dir() / f"correlation-{kind}-{key}.npz"
-    if path.exists():
-        try:
-            with np.load(path) as stored:
-                return {name: stored[name] for name in stored.files}
-        except (OSError, ValueError):
-            pass  # a damaged entry is recomputed and replaced
-    arrays = compute()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as handle:
-            np.savez(handle, **arrays)
-        os.replace(handle.name, path)
-    except OSError:
-        pass  # an unwritable cache only costs time
-    return arrays
+    """Load ``compute()``'s arrays for (``kind``, world, options) from the one ccjax cache
+    (:func:`ccjax._cache.cached_arrays`, keyed by :func:`ccjax._cache.content_key` of the world and
+    the options), else compute and store them.
+
+    Arguments:
+        kind: what is cached (``"rgb-matrix"``, ``"mlm-width"``, ...).
+        world: the world the arrays are fitted to.
+        options: JSON-able fit options.
+        compute: builds the arrays on a miss.
+
+    Returns:
+        The arrays by name.
+    """
+    kind = f"correlation-{kind}"
+    key = content_key(kind, _CACHE_VERSION, world, options)
+    return cached_arrays(kind, key, compute, {"world": world.name, "options": options})
 
 
 def illuminant_rg_of(world: World) -> Float[Array, "I 2"]:
+    """``(I, 2)`` (r,g) of the training illuminants' whites (float64 products, float32 result)."""
     whites = np.asarray(world.train_illuminants, np.float64) @ np.asarray(world.camera.sensors, np.float64)
-    return jnp.asarray(whites[:, :2] / whites.sum(axis=1, keepdims=True), jnp.float32)
+    return jnp.asarray(rg_numpy(whites), jnp.float32)
 
 
 def resolve_specular(specular) -> Specular | None:

@@ -1,0 +1,99 @@
+"""Trained NEURAL-NET weights in the ccjax cache: ``<cache>/neural/<label>-<key>.eqx`` with a JSON
+record beside it (:mod:`ccjax._cache`), keyed by the world arrays training reads and the recipe.
+Building a net estimator never trains: missing weights raise :class:`MissingWeightsError` with the
+command that trains them."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import jax
+
+from ccjax._cache import cache_directory, content_key, load_model, save_model
+from ccjax.estimators.neural.model import Mlp
+from ccjax.estimators.neural.training import RECIPES, Recipe, Schedule, TrainingLog, train
+from ccjax.world import World
+
+
+class MissingWeightsError(FileNotFoundError):
+    """No trained weights are cached for this net and world."""
+
+
+def cache_key(world: World, recipe: Recipe) -> str:
+    """:func:`ccjax._cache.content_key` of the world arrays training reads (reflectances, training
+    illuminants, camera sensors; not the test illuminants) and of the recipe."""
+    fields = {field.name: getattr(recipe, field.name) for field in dataclasses.fields(recipe)}
+    return content_key("neural", world.reflectances, world.train_illuminants, world.camera.sensors, fields)
+
+
+def weights_path(world: World, label: str, recipe: Recipe | None = None) -> Path:
+    """Where the weights of net ``label`` (or of ``recipe``) for ``world`` are cached."""
+    recipe = recipe or _recipe(label)
+    return cache_directory() / "neural" / f"{label}-{cache_key(world, recipe)}.eqx"
+
+
+def has_weights(world: World, label: str) -> bool:
+    """True when trained weights of net ``label`` for ``world`` are cached."""
+    return weights_path(world, label).is_file()
+
+
+def is_net_label(label: str) -> bool:
+    """True for the labels whose estimator needs trained weights (NEURAL-NET, SP-NEURAL-NET)."""
+    return label in RECIPES
+
+
+def save(net: Mlp, world: World, label: str, recipe: Recipe, schedule: Schedule, log: TrainingLog) -> Path:
+    """Write the weights and a JSON record beside them (:func:`ccjax._cache.save_model`, atomic)."""
+    record = {
+        "label": label,
+        "world": world.name,
+        "recipe": dataclasses.asdict(recipe),
+        "schedule": dataclasses.asdict(schedule),
+        "training_seconds": log.seconds,
+        "final_rms_rg": math.sqrt(log.losses[-1]) if log.losses else None,
+    }
+    return save_model(weights_path(world, label, recipe), net, record)
+
+
+def load(world: World, label: str, recipe: Recipe | None = None) -> Mlp:
+    """Load the cached net ``label`` for ``world``; :class:`MissingWeightsError` if there is none."""
+    recipe = recipe or _recipe(label)
+    path = weights_path(world, label, recipe)
+    if not path.is_file():
+        raise MissingWeightsError(
+            f"{label}: no trained weights for world {world.name!r} (looked for {path}); "
+            f"train them with `{train_command(world, label)}` (a few minutes on a CPU)"
+        )
+    return load_model(path, Mlp(jax.random.key(0), recipe.sizes()))
+
+
+def train_command(world: World, label: str) -> str:
+    """The command line that trains ``label`` for ``world`` (for error messages)."""
+    specular = " --specular" if RECIPES.get(label, Recipe()).specular is not None else ""
+    if world.name == "barnard1999":
+        return f"ccjax train-net --world barnard1999{specular}"
+    if world.name.startswith("default (") and world.name.endswith(")"):
+        return f'ccjax train-net --world default --camera "{world.name[9:-1]}"{specular}'
+    return f"ccjax.estimators.neural.train_and_save(world, {label!r})"
+
+
+def train_and_save(
+    world: World, label: str = "NEURAL-NET", schedule: Schedule | None = None, *, progress: bool = False
+) -> tuple[Path, TrainingLog]:
+    """Train net ``label`` (a key of :data:`RECIPES`) for ``world`` and cache its weights.
+
+    Returns:
+        The weights' path and the :class:`TrainingLog`.
+    """
+    recipe = _recipe(label)
+    schedule = schedule or Schedule()
+    net, log = train(world, recipe, schedule, progress=progress)
+    return save(net, world, label, recipe, schedule, log), log
+
+
+def _recipe(label: str) -> Recipe:
+    if label not in RECIPES:
+        raise ValueError(f"label: expected one of {sorted(RECIPES)}, got {label!r}")
+    return RECIPES[label]
