@@ -27,7 +27,9 @@ GROUPS = (synthetic, catalogue, photos, indexing, training, sharpen, calibrate)
 
 COMMANDS = [add for group in GROUPS for add in group.COMMANDS]
 
-# Deprecated private alias (one release): tests/test_neural.py calls ``cli._weights_ready``.
+# Old paths of the single-module CLI, kept for one release.
+DEFAULT_COMPARE_METHODS = synthetic.DEFAULT_COMPARE_METHODS
+DEFAULT_INDEXING_METHODS = indexing.DEFAULT_INDEXING_METHODS
 _weights_ready = weights_ready
 
 
@@ -58,4 +60,4 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
-__all__ = ["COMMANDS", "GROUPS", "build_parser", "main"]
+__all__ = ["COMMANDS", "DEFAULT_COMPARE_METHODS", "DEFAULT_INDEXING_METHODS", "GROUPS", "build_parser", "main"]
