@@ -1,5 +1,8 @@
-"""The estimator contract (DESIGN.md §2): a fitted model is an ``eqx.Module`` whose ``__call__``
-estimates ONE scene, ``model(rgb (P, 3), mask (P,)) -> Estimate``; batching is ``jax.vmap``."""
+"""The estimator contract: a fitted model is an ``eqx.Module`` whose ``__call__`` estimates ONE
+scene and returns the one :class:`Estimate`: ``model(rgb (P, 3), mask (P,))`` for surface
+estimators, ``model(image (H, W, 3), mask (H, W))`` for image estimators; batching is ``jax.vmap``
+(:func:`estimate_batch`). Input checks at the Python boundary: :func:`validate_input`,
+:func:`require_kind`."""
 
 from __future__ import annotations
 
@@ -76,7 +79,7 @@ class Estimate(eqx.Module):
 
 
 class AbstractEstimator(eqx.Module):
-    """A fitted estimator (DESIGN.md §2): configuration that changes the trace is static, what can
+    """A fitted estimator: configuration that changes the trace is static, what can
     be learned is an array, so every model is a valid ``jax.jit`` / ``jax.vmap`` / ``jax.grad``
     argument. Concrete estimators derive from :class:`AbstractSurfaceEstimator` or
     :class:`AbstractImageEstimator` and are final.

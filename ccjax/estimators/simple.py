@@ -1,8 +1,8 @@
 """Baselines and statistical estimators: NOTHING, AVE-ILLUM, GW, DB-GW, RETINEX, shades of grey.
 
-Definitions follow Barnard 1999 §4.5 (spec ch02-04 §6.1–6.3). Every estimator respects the mask,
+Definitions follow Barnard 1999 §4.5 (§4.5.1 grey world, §4.5.2 RETINEX). Every estimator respects the mask,
 is jit/vmap-able and falls back (``ok=False``) to the world's average training illuminant when a
-scene has no usable data (spec ch02-04 §10 item 27).
+scene has no usable data.
 """
 
 from __future__ import annotations
@@ -151,47 +151,24 @@ def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
 # labels
 
 
-@register(r"NOTHING", example="NOTHING", description="assume the canonical light (§4.5)", traceable_fit=True)
-def _build_nothing(world, match, **options):
-    return fit_nothing(world, **options)
-
-
-@register(r"AVE-ILLUM", example="AVE-ILLUM", description="mean of the training illuminants (§4.5)", traceable_fit=True)
-def _build_ave_illum(world, match, **options):
-    return fit_ave_illum(world, **options)
-
-
-@register(
-    r"GW",
-    example="GW",
-    description="grey world, 2 x mean RGB (§4.5.1)",
-    traceable_fit=True,
-    differentiable=True,
+# Labels without parameters: (pattern, grammar, description, fit, differentiable). Every fit here
+# is pure JAX in the world's arrays.
+_FIXED_LABELS = (
+    ("NOTHING", "NOTHING", "assume the canonical light (§4.5)", fit_nothing, False),
+    ("AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)", fit_ave_illum, False),
+    ("GW", "GW", "grey world, 2 x mean RGB (§4.5.1)", fit_gw, True),
+    ("DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)", fit_db_gw, True),
+    ("RETINEX|MAX-RGB|max-rgb", "RETINEX | MAX-RGB | max-rgb", "per-channel maximum (§4.5.2)", fit_retinex, False),
 )
-def _build_gw(world, match, **options):
-    return fit_gw(world, **options)
-
-
-@register(
-    r"DB-GW",
-    example="DB-GW",
-    description="grey world with the database mean as grey (§4.5.1)",
-    traceable_fit=True,
-    differentiable=True,
-)
-def _build_db_gw(world, match, **options):
-    return fit_db_gw(world, **options)
-
-
-@register(
-    r"RETINEX|MAX-RGB|max-rgb",
-    grammar="RETINEX | MAX-RGB | max-rgb",
-    example="RETINEX",
-    description="per-channel maximum (§4.5.2)",
-    traceable_fit=True,
-)
-def _build_retinex(world, match, **options):
-    return fit_retinex(world, **options)
+for _pattern, _grammar, _description, _fit, _differentiable in _FIXED_LABELS:
+    register(
+        _pattern,
+        grammar=_grammar,
+        example=_grammar.split(" ")[0],
+        description=_description,
+        traceable_fit=True,
+        differentiable=_differentiable,
+    )(lambda world, match, fit=_fit, **options: fit(world, **options))
 
 
 @register(

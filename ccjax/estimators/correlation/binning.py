@@ -34,7 +34,7 @@ def rg_bins_np(rgb: np.ndarray) -> np.ndarray:
 
 def compact_rg_cells() -> np.ndarray:
     """``(2500,)`` compact index of each (r,g) bin ``50 i + j``: ``0..1274`` where ``i + j <= 49``
-    (row-major over the possible half), ``-1`` for impossible bins (spec ch08-12 §4.3 item 3)."""
+    (row-major over the possible half), ``-1`` for impossible bins (r + g > 1, §10.2)."""
     i, j = np.divmod(np.arange(RG_BINS * RG_BINS), RG_BINS)
     possible = i + j <= RG_BINS - 1
     cells = np.full(RG_BINS * RG_BINS, -1, np.int64)

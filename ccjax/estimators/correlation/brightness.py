@@ -38,7 +38,7 @@ RG_CELLS = compact_rg_cells().astype(np.int32)
 
 @typing.final
 class ColourByCorrelation3D(AbstractSurfaceEstimator):
-    """Colour by Correlation in (r, g, L) (chapter 10, §10.1–10.2; spec ch08-12 §4).
+    """Colour by Correlation in (r, g, L) (chapter 10, §10.1–10.2).
 
     Every (training illuminant ``i``, brightness ``b_q``) pair is a hypothesis. ``B0 = 4.3 x
     mean(R+G+B)`` of the scene; ``b_q`` runs log-uniformly over ``[B0 / 3, 3 B0]`` (101 levels).

@@ -12,7 +12,7 @@ from ccjax.scenes import Specular
 from ccjax.world import World
 
 BRIGHTNESS_SIGMA = (0.75, 0.5)
-"""Smoothing of the 3-D matrix in bins, (r,g) and L. The thesis gives none (spec ch08-12 A13); these
+"""Smoothing of the 3-D matrix in bins, (r,g) and L. The thesis gives none (§10.2); these
 values reproduce Tables 10.1 and 10.2 best on World.barnard1999 (8 surfaces, 1000 scenes, rg RMS):
 remedy 1 MAP/MMSE 0.0319/0.0264 (thesis 0.030/0.025), remedy 2 0.0252/0.0215 (0.029/0.024). With
 (1, 1) they are 0.0404/0.0334 and 0.0316/0.0279; with (0.5, 0.5) 0.0304/0.0246 and 0.0254/0.0202."""
@@ -26,7 +26,7 @@ def training_responses(
     Uniform statistics over surfaces and illuminants (§4.5.4, §10.2). With ``specular``, each
     surface also appears with ``s`` times the perfect white added, ``s`` at the midpoints of 8
     equal steps of ``[0, max_amount]``; the matte copy has weight ``1 - probability`` and each
-    specular copy ``probability / 8`` (spec ch08-12 A18: a coarse model of the test generator).
+    specular copy ``probability / 8`` (a coarse model of the test generator, §10.2).
 
     Returns:
         ``(rgb (I, K, 3), weights (K,), whites (I, 3))`` in float64.
@@ -71,7 +71,7 @@ def chromaticity_matrix(
 
     Arguments:
         world: supplies reflectances, training illuminants and camera.
-        sigma: Gaussian smoothing in bins (the thesis does not give it; spec ch02-04 §10 item 20).
+        sigma: Gaussian smoothing in bins (the thesis does not give it, §4.5.4).
         floor: probabilities below ``floor`` x the illuminant's maximum are raised to it before the
             log, so no observation rules an illuminant out completely.
         specular: train on specular surfaces too (see :func:`training_responses`).
@@ -124,12 +124,12 @@ def brightness_matrix(
     specular: Specular | None = None,
     specular_steps: int = 8,
 ) -> tuple[np.ndarray, int]:
-    """The 3-D correlation matrix of chapter 10 (§10.2; spec ch08-12 §4.3).
+    """The 3-D correlation matrix of chapter 10 (§10.2).
 
     For each training illuminant the reflectances' (r, g, L / L_white) are counted in cells
     (``l_bins`` linear bins per unit of ``L / L_white``; matte surfaces fill ``[0, 1)``, specular
     training extends the axis to ``1 + max_amount``), smoothed by a Gaussian (``sigma`` bins in r
-    and g, ``sigma_l`` in L; spec ch08-12 A13), normalised, floored and logged.
+    and g, ``sigma_l`` in L; :data:`BRIGHTNESS_SIGMA`), normalised, floored and logged.
 
     Returns:
         ``(log_probability (1275 * l_total + 1, I) float32, l_total)``; the last row is the

@@ -60,7 +60,7 @@ class Schedule:
 
 RECIPES: dict[str, Recipe] = {
     "NEURAL-NET": Recipe(),
-    # Statistics deliberately different from the test protocol's 0.25 / U(0, 2) (spec item 23).
+    # Statistics deliberately different from the test protocol's 0.25 / U(0, 2) (§4.5.5, [64]).
     "SP-NEURAL-NET": Recipe(specular=Specular(probability=0.5, max_amount=1.0)),
 }
 
