@@ -2,8 +2,10 @@
 (:mod:`ccjax.scenes.surfaces`) and Mondrian images rendered from its spectra
 (:mod:`ccjax.scenes.mondrian`).
 
-:func:`draw_scene` is the one function that draws a scene's light and surfaces; every sampler and
-the chapter-5 experiment use it.
+:func:`draw_scene` is the one function that draws a surface-list scene's light and surfaces:
+:func:`sample`, :func:`sample_batch` (hence the sweeps) and the chapter-5 experiment use it, so
+the same key gives the same scene in each. Mondrian images split their keys differently (one
+more key for the layout) and draw with :func:`draw_without_replacement` directly.
 """
 
 from ccjax.scenes.mondrian import MondrianImages as MondrianImages
