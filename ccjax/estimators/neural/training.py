@@ -14,7 +14,6 @@ import optax
 from jaxtyping import Array, Float, PRNGKeyArray
 from tqdm.auto import tqdm
 
-from ccjax._colour import rg
 from ccjax.estimators.neural.model import N_INPUTS, Mlp, occupied_bins
 from ccjax.scenes import SceneTables, Specular, sample_batch, scene_keys
 from ccjax.world import World
@@ -92,7 +91,10 @@ def training_batch(
     rgb = scenes.rgb * (1.0 + recipe.noise * jax.random.normal(key_noise, scenes.rgb.shape))
     rgb = jnp.maximum(rgb, 0.0)
     histograms = jax.vmap(occupied_bins)(rgb, mask)
-    return histograms, rg(scenes.illuminant)
+    # Not ccjax._colour.rg: its guard for black pixels (never the case for a light) lets XLA fuse the
+    # division differently and moves the trained weights by float32 rounding; keep the nets as trained.
+    total = jnp.sum(scenes.illuminant, axis=-1, keepdims=True)
+    return histograms, scenes.illuminant[:, :2] / total
 
 
 def training_loss(net: Mlp, histograms, targets) -> jax.Array:
