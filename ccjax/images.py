@@ -3,7 +3,8 @@
 New homes: :mod:`ccjax.io` (reading, writing, ground truth, sRGB preview),
 :mod:`ccjax.preprocessing` (usable pixels, Table 4.6 preprocessing, estimator input),
 :mod:`ccjax.correction` (correction maps and gains), :mod:`ccjax.experiments.evaluation`
-(cached worlds and fits, the evaluation runner, fold worlds) and :mod:`ccjax._cache` (cache
+(cached worlds, the evaluation runner, fold worlds), :func:`ccjax.estimators.registry.fit_cached`
+(fitted models, memoised in-process) and :mod:`ccjax._cache` (cache
 directory, compilation cache).
 """
 
@@ -13,8 +14,8 @@ from ccjax.correction import apply_map as apply_map
 from ccjax.correction import correct as correct
 from ccjax.correction import correction_map as correction_map
 from ccjax.correction import diagonal_gains as diagonal_gains
+from ccjax.estimators.registry import fit_cached as cached_fit  # noqa: F401  (re-exported under its old name)
 from ccjax.experiments.evaluation import ImageResults as ImageResults
-from ccjax.experiments.evaluation import cached_fit as cached_fit
 from ccjax.experiments.evaluation import cached_world as cached_world
 from ccjax.experiments.evaluation import fold_worlds as fold_worlds
 from ccjax.experiments.evaluation import run_images as run_images

@@ -55,22 +55,22 @@ def test_cached_world_is_stored_as_arrays_and_rebuilt(world, cache, monkeypatch)
         evaluation.cached_world("thesis")
 
 
-def test_cached_fit_fits_once_per_world(world, monkeypatch):
-    first = evaluation.cached_fit("DB-GW", world)
+def test_fits_are_memoised_per_world(world, monkeypatch):
+    first = registry.fit_cached("DB-GW", world)
     monkeypatch.setattr(registry, "fit", lambda *a, **k: pytest.fail("refitted instead of reusing the fit"))
-    assert evaluation.cached_fit("DB-GW", world) is first
+    assert registry.fit_cached("DB-GW", world) is first
     other = eqx.tree_at(lambda w: w.train_illuminants, world, world.train_illuminants[:5])
     with pytest.raises(pytest.fail.Exception, match="refitted"):
-        evaluation.cached_fit("DB-GW", other)  # another world: fitted again
+        registry.fit_cached("DB-GW", other)  # another world: fitted again
     with pytest.raises(ValueError, match="NO-SUCH-METHOD"):
-        evaluation.cached_fit("NO-SUCH-METHOD", world)
+        registry.fit_cached("NO-SUCH-METHOD", world)
 
 
 def test_old_image_paths_are_the_new_objects():
     assert images.read_image is io.read_image and images.LinearImage is io.LinearImage
     assert images.surfaces is preprocessing.surfaces and images.Preprocessing is preprocessing.Preprocessing
     assert images.correct is correction.correct and images.run_images is evaluation.run_images
-    assert images.cached_fit is evaluation.cached_fit and images.cached_world is evaluation.cached_world
+    assert images.cached_fit is registry.fit_cached and images.cached_world is evaluation.cached_world
     from ccjax import _cache
 
     assert images.cache_directory is _cache.cache_directory
@@ -236,7 +236,7 @@ def test_round_trip_files_equal_memory(tmp_path, world, cache, monkeypatch, mond
     records = json.loads((tmp_path / "r.json").read_text())["images"]
     codes = io.quantise(np.asarray(batch.image))
     for method in methods:
-        model = evaluation.cached_fit(method, world)
+        model = registry.fit_cached(method, world)
         file_errors = [r["angular"] for r in records if r["method"] == method]
         for index in range(50):
             memory = LinearImage(codes[index].astype(np.float32) / 65535.0, np.any(codes[index] >= 65535, axis=-1))

@@ -4,8 +4,8 @@
 between the surface-list methods); :func:`fold_worlds` builds the worlds of a K-fold
 cross-validation whose trained methods learn the lights of the other folds' ground truth.
 :func:`cached_world` gives the worlds the command line uses, stored on disk as arrays (no pickle);
-:func:`cached_fit` fits a model once per process (the expensive fits keep their own arrays on
-disk).
+fitted models come from :func:`ccjax.estimators.registry.fit_cached` (once per process; the
+expensive fits keep their own arrays on disk).
 """
 
 from __future__ import annotations
@@ -83,26 +83,6 @@ def cached_world(
     key = content_key("world", _source_fingerprint(), *parts)
     arrays = cached_arrays("world", key, lambda: _world_arrays(build()), {"world": list(parts)})
     return _world_from_arrays(arrays)
-
-
-_FITTED: dict[str, AbstractEstimator] = {}
-
-
-def cached_fit(label: str, world: World, **options) -> AbstractEstimator:
-    """``registry.fit(label, world, **options)``, fitted once per process for equal label, options
-    and world content (:func:`ccjax._cache.content_key`); the expensive fits (Colour by
-    Correlation, the nets) also keep their arrays on disk.
-
-    Raises:
-        ValueError: unknown label (before anything is hashed or fitted).
-    """
-    from ccjax.estimators import registry
-
-    registry.lookup(label)
-    key = content_key("fit", label, options, world)
-    if key not in _FITTED:
-        _FITTED[key] = registry.fit(label, world, **options)
-    return _FITTED[key]
 
 
 @dataclass
