@@ -1,14 +1,24 @@
-"""Shared fixtures. External-data tests skip when ../shared/data is missing, except under CI=true,
-where a missing data directory is a failure."""
+"""Shared fixtures and the suite's strict settings.
+
+The suite is stricter than the library: jaxtyping runtime checks with beartype on every ``ccjax``
+module (``--jaxtyping-packages`` in pyproject's ``addopts``; pytest's jaxtyping plugin installs the
+import hook before this file imports ccjax), strict dtype promotion (below) and warnings as errors
+(pyproject's ``filterwarnings``, with the named exceptions). External-data tests skip when
+../shared/data is missing, except under CI=true, where a missing data directory is a failure."""
 
 from __future__ import annotations
 
 import os
 
+import jax
 import pytest
 
-from ccjax import data
-from ccjax.world import World
+# An implicit promotion (int -> float, float32 -> float64) inside ccjax is a bug: it hides a dtype
+# the code did not choose, and under x64 it silently changes precision. Set before ccjax is used.
+jax.config.update("jax_numpy_dtype_promotion", "strict")
+
+from ccjax import data  # noqa: E402  (after the promotion setting, which must precede any use)
+from ccjax.world import World  # noqa: E402
 
 
 def require_external_data() -> None:

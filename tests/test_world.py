@@ -11,6 +11,23 @@ from ccjax.metrics import angular_error
 from ccjax.world import build_illuminant_set, normalise_illuminants
 
 
+def test_runtime_shape_checks_reach_ccjax():
+    """The suite runs with jaxtyping + beartype checks on ccjax (pyproject ``--jaxtyping-packages``):
+    a wrongly shaped signal is rejected by its annotation, not by the matrix product inside."""
+    camera = Camera.from_name("Canon EOS 5D Mark II")
+    with pytest.raises(TypeCheckError, match="signal"):
+        camera.response(np.ones((4, 100)))
+
+
+def test_strict_dtype_promotion_is_on():
+    """The suite runs with ``jax_numpy_dtype_promotion="strict"`` (tests/conftest.py)."""
+    import jax
+    import jax.numpy as jnp
+
+    with pytest.raises(jax.dtypes.TypePromotionError, match="strict"):
+        jnp.ones(2, jnp.float32) + jnp.ones(2, jnp.int32)
+
+
 def test_grid():
     assert spectra.WAVELENGTHS.shape == (101,)
     assert spectra.WAVELENGTHS[0] == 380 and spectra.WAVELENGTHS[-1] == 780
