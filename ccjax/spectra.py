@@ -76,7 +76,10 @@ def resample(
 def chromaticity(rgb: np.ndarray) -> np.ndarray:
     """(r, g) chromaticity ``(R, G) / (R + G + B)`` of NumPy RGBs, shape ``(..., 3) -> (..., 2)``.
 
-    A NumPy helper for loaders and plots; the jit-able version is :func:`ccjax.metrics.rg`.
+    A NumPy helper for loaders and plots, kept for its callers. New code uses
+    :func:`ccjax._colour.rg_numpy` (or the jit-able :func:`ccjax.metrics.rg`), which agrees wherever
+    ``R+G+B > 1e-12``; here a black RGB gives ``(0, 0)`` rather than the achromatic ``(1/3, 1/3)``,
+    which is why this is not an alias of it (the numbers printed from it must not move).
     """
     rgb = np.asarray(rgb, dtype=np.float64)
     total = rgb.sum(axis=-1, keepdims=True)
