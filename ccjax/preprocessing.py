@@ -216,7 +216,7 @@ RGB clustering, 5 with hull reduction). The thesis' remaining two ("two selected
 hull reduction") do not say which segmentations; any ``seg-...-hull`` name runs such a variant."""
 
 
-def padded_size(count: int) -> int:
+def padded_size(count: int | np.integer) -> int:
     """The length surface lists of ``count`` rows are padded to: a power of two, at least 64, so
     jit compiles once per size class, not once per image."""
     return max(64, 1 << int(np.ceil(np.log2(max(count, 1)))))
@@ -302,7 +302,7 @@ def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[A
     height, width, _ = rgb.shape
     rows = jnp.where(mask[..., None], rgb, 0.0).reshape(height, width * 3)
     total = (jnp.ones((height,), rgb.dtype) @ rows).reshape(width, 3).sum(axis=0)
-    return total / jnp.maximum(jnp.sum(mask), 1)
+    return total / jnp.maximum(jnp.sum(mask, dtype=rgb.dtype), 1.0)  # exact counts up to 2**24 pixels
 
 
 def estimate_pixels(model: AbstractEstimator, rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:

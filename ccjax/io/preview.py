@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from jaxtyping import ArrayLike
+from numpy.typing import ArrayLike
 
 from ccjax._cache import cached_arrays, content_key
 from ccjax.io.png import write_png

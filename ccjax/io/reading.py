@@ -87,8 +87,8 @@ def _read_pixels(path: Path) -> np.ndarray:
 def read_image(
     path: str | os.PathLike,
     *,
-    black_level: float = 0.0,
-    saturation: float | None = None,
+    black_level: float | int = 0.0,
+    saturation: float | int | None = None,
     assume_linear: bool = False,
 ) -> LinearImage:
     """Read a linear image (16-bit PNG, TIFF, or camera raw with the ``raw`` extra).

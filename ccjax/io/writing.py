@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 import numpy as np
-from jaxtyping import ArrayLike
+from numpy.typing import ArrayLike
 
 from ccjax.io.ground_truth import write_ground_truth
 from ccjax.io.png import write_png
