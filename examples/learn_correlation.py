@@ -91,13 +91,15 @@ def main() -> None:
         )
         print(
             f"{name}: {args.steps} steps x {args.batch} scenes in {time.perf_counter() - begin:.0f} s; "
-            f"training RMS rg error (first/last 50 steps) {np.sqrt(losses[:50].mean()):.4f} -> {np.sqrt(losses[-50:].mean()):.4f}"
+            f"training RMS rg error (first/last 50 steps) {np.sqrt(losses[:50].mean()):.4f} -> "
+            f"{np.sqrt(losses[-50:].mean()):.4f}"
         )
         matrices[name] = dataclasses.replace(counted, log_probability=learned)
 
     result = sweep(world, list(matrices.items()), [4, 8, 16, 32], args.scenes, jax.random.key(7), progress=False)
     print(
-        f"\nheld-out: {args.scenes} scenes per surface count under the {world.test_illuminants.shape[0]} test illuminants ({world.name})"
+        f"\nheld-out: {args.scenes} scenes per surface count under the "
+        f"{world.test_illuminants.shape[0]} test illuminants ({world.name})"
     )
     print(result.table("rg"))
     print()
