@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, ArrayLike, Float, Int
 
 TINY = 1e-12
 """Sums at or below this have no chromaticity."""
 
 
-def rg(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
+def rg(rgb: Float[ArrayLike, "... 3"]) -> Float[Array, "... 2"]:
     """(r,g) chromaticity of RGB (traceable; ``(1/3, 1/3)`` where ``R+G+B <= TINY``).
 
     Arguments:
@@ -23,12 +23,13 @@ def rg(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
     Returns:
         ``(..., 2)`` chromaticities.
     """
+    rgb = jnp.asarray(rgb)
     total = jnp.sum(rgb, axis=-1, keepdims=True)
     valid = total > TINY
     return jnp.where(valid, rgb[..., :2] / jnp.where(valid, total, 1.0), 1.0 / 3.0)
 
 
-def rg_to_rgb(chromaticity: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
+def rg_to_rgb(chromaticity: Float[ArrayLike, "... 2"]) -> Float[Array, "... 3"]:
     """The RGB of unit sum with chromaticity ``(r, g)``: ``(r, g, 1 - r - g)``.
 
     Arguments:
@@ -37,6 +38,7 @@ def rg_to_rgb(chromaticity: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
     Returns:
         ``(..., 3)``.
     """
+    chromaticity = jnp.asarray(chromaticity)
     return jnp.concatenate([chromaticity, 1.0 - jnp.sum(chromaticity, axis=-1, keepdims=True)], axis=-1)
 
 
@@ -55,7 +57,7 @@ def rg_numpy(rgb: np.ndarray) -> np.ndarray:
     return np.where(valid, rgb[..., :2] / np.where(valid, total, 1.0), 1.0 / 3.0)
 
 
-def rg_bin(chromaticity: Float[Array, "... 2"], n_bins: int) -> Int[Array, "... 2"]:
+def rg_bin(chromaticity: Float[ArrayLike, "... 2"], n_bins: int) -> Int[Array, "... 2"]:
     """The (r,g) cell of each chromaticity on an ``n_bins`` x ``n_bins`` grid over ``[0, 1]^2``.
 
     Cell ``i`` covers ``[i / n_bins, (i + 1) / n_bins)``; 1.0 falls in the last cell.
@@ -67,4 +69,4 @@ def rg_bin(chromaticity: Float[Array, "... 2"], n_bins: int) -> Int[Array, "... 
     Returns:
         ``(..., 2)`` integer cell indices in ``[0, n_bins - 1]``.
     """
-    return jnp.clip(jnp.floor(chromaticity * n_bins).astype(jnp.int32), 0, n_bins - 1)
+    return jnp.clip(jnp.floor(jnp.asarray(chromaticity) * n_bins).astype(jnp.int32), 0, n_bins - 1)
