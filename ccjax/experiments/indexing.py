@@ -122,7 +122,7 @@ def render_objects(
     return ObjectImages(database=database, queries=queries, query_whites=tables.whites[lights])
 
 
-def _dark_mask(images: Float[Array, "... H W 3"], dark: float) -> Bool[Array, "... H W"]:
+def _dark_mask(images: Float[Array, "... H W 3"], dark: float | Float[Array, ""]) -> Bool[Array, "... H W"]:
     brightness = jnp.sum(images, axis=-1)
     peak = jnp.max(brightness, axis=(-2, -1), keepdims=True)
     return (brightness >= dark * peak) & (brightness > 0)
@@ -229,7 +229,7 @@ def run_indexing(
         noise: image noise (variance ``a * rho + b``), or None.
         preprocessing, dark: the image pipeline's settings for surface-list methods.
         fit: ``fit(label, world) -> estimator`` (default
-            :func:`ccjax.experiments.evaluation.cached_fit`).
+            :func:`ccjax.estimators.registry.fit_cached`).
         progress: show a progress bar over methods.
 
     Returns:
@@ -237,13 +237,13 @@ def run_indexing(
     """
     from tqdm.auto import tqdm
 
-    from ccjax.experiments.evaluation import cached_fit
+    from ccjax.estimators.registry import fit_cached
 
     if not 1 <= n_lights <= world.test_illuminants.shape[0]:
         raise ValueError(f"n_lights: expected 1 .. {world.test_illuminants.shape[0]}, got {n_lights}")
     if not 1 <= n_surfaces <= world.reflectances.shape[0]:
         raise ValueError(f"n_surfaces: expected 1 .. {world.reflectances.shape[0]}, got {n_surfaces}")
-    fit = fit or cached_fit
+    fit = fit or fit_cached
     rendered = render_objects(key, world, n_objects, n_surfaces, n_lights, size, noise)
     database_histograms = jax.vmap(rg_histogram)(rendered.database, _dark_mask(rendered.database, dark))
     queries = np.asarray(rendered.queries)

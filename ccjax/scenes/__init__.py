@@ -14,6 +14,7 @@ from ccjax.scenes.mondrian import mondrian_layout as mondrian_layout
 from ccjax.scenes.mondrian import render_mondrian as render_mondrian
 from ccjax.scenes.mondrian import sample_mondrians as sample_mondrians
 from ccjax.scenes.surfaces import SceneDraw as SceneDraw
+from ccjax.scenes.surfaces import SceneKeys as SceneKeys
 from ccjax.scenes.surfaces import Scenes as Scenes
 from ccjax.scenes.surfaces import SceneTables as SceneTables
 from ccjax.scenes.surfaces import ShotNoise as ShotNoise

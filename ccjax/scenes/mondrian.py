@@ -16,6 +16,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float, Int, PRNGKeyArray
 
 from ccjax.scenes.surfaces import (
+    SceneKeys,
     SceneTables,
     ShotNoise,
     Specular,
@@ -37,10 +38,10 @@ class MondrianImages(eqx.Module):
         surfaces: ``(B, P)`` reflectance index of every patch.
     """
 
-    image: Float[Array, "B H W 3"]
-    illuminant: Float[Array, "B 3"]
-    labels: Int[Array, "B H W"]
-    surfaces: Int[Array, "B P"]
+    image: Float[Array, "*batch H W 3"]
+    illuminant: Float[Array, "*batch 3"]
+    labels: Int[Array, "*batch H W"]
+    surfaces: Int[Array, "*batch P"]
 
 
 def _row_patch_counts(n_patches: int) -> list[int]:
@@ -64,8 +65,8 @@ def mondrian_layout(key: PRNGKeyArray, height: int, width: int, n_patches: int) 
     """
     counts = _row_patch_counts(n_patches)
     key_rows, *key_cols = jax.random.split(key, len(counts) + 1)
-    y = (jnp.arange(height) + 0.5) / height
-    x = (jnp.arange(width) + 0.5) / width
+    y = (jnp.arange(height, dtype=float) + 0.5) / height
+    x = (jnp.arange(width, dtype=float) + 0.5) / width
     row_edges = jnp.cumsum(_proportions(key_rows, len(counts)))[:-1]
     row = jnp.sum(y[:, None] >= row_edges[None, :], axis=1)  # (H,)
     labels = jnp.zeros((height, width), jnp.int32)
@@ -137,7 +138,7 @@ def render_mondrian(
 
 @partial(jax.jit, static_argnames=("height", "width", "n_patches", "shading", "specular", "noise", "clip", "normalise"))
 def mondrian_batch(
-    keys: PRNGKeyArray,
+    keys: SceneKeys,
     tables: SceneTables,
     height: int,
     width: int,

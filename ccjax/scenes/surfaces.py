@@ -19,16 +19,20 @@ from functools import partial
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
+from jaxtyping import Array, Bool, Float, Int, Key, PRNGKeyArray, UInt32
 
 from ccjax.world import World
+
+SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
+"""A batch of ``B`` PRNG keys, one per scene (typed keys or raw ``uint32`` pairs)."""
 
 # Floyd's algorithm costs O(P^2) per scene, Gumbel top-k O(S log P); switch where they cross.
 _FLOYD_MAX_SURFACES = 64
 
 
 class Scenes(eqx.Module):
-    """A batch of synthetic scenes (Barnard 1999 §4.7): fixed shapes with a mask, so batches ``vmap``.
+    """A batch of synthetic scenes (Barnard 1999 §4.7): fixed shapes with a mask, so batches ``vmap``
+    (one scene, as :func:`sample_one` returns it, has no batch axis).
 
     Attributes:
         rgb: ``(B, P, 3)`` camera RGB of each surface under the scene light.
@@ -37,10 +41,10 @@ class Scenes(eqx.Module):
         canonical_rgb: ``(B, P, 3)`` the same surfaces under the canonical light (mapping errors).
     """
 
-    rgb: Float[Array, "B P 3"]
-    mask: Bool[Array, "B P"]
-    illuminant: Float[Array, "B 3"]
-    canonical_rgb: Float[Array, "B P 3"]
+    rgb: Float[Array, "*batch P 3"]
+    mask: Bool[Array, "*batch P"]
+    illuminant: Float[Array, "*batch 3"]
+    canonical_rgb: Float[Array, "*batch P 3"]
 
 
 @dataclass(frozen=True)
@@ -96,8 +100,9 @@ def draw_without_replacement(key: PRNGKeyArray, n_population: int, n_draws: int)
     """
     if n_draws <= _FLOYD_MAX_SURFACES:
         # Floyd's algorithm: step i draws t in [0, n - P + i]; a repeat is replaced by n - P + i.
-        ceilings = n_population - n_draws + jnp.arange(n_draws)
-        draws = jnp.floor(jax.random.uniform(key, (n_draws,)) * (ceilings + 1)).astype(jnp.int32)
+        ceilings = n_population - n_draws + jnp.arange(n_draws, dtype=jnp.int32)
+        uniform = jax.random.uniform(key, (n_draws,))
+        draws = jnp.floor(uniform * (ceilings + 1).astype(uniform.dtype)).astype(jnp.int32)
         draws = jnp.minimum(draws, ceilings)
 
         def step(i, chosen):
@@ -121,7 +126,7 @@ class SceneDraw(eqx.Module):
     surfaces: Int[Array, "*batch P"]
 
 
-def _scene_subkeys(key: PRNGKeyArray) -> PRNGKeyArray:
+def _scene_subkeys(key: PRNGKeyArray) -> SceneKeys:
     # One split per scene key: light, surfaces, specular choice, specular amount, noise.
     return jax.random.split(key, 5)
 
@@ -147,7 +152,7 @@ def draw_scene(key: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces
     return SceneDraw(light=light, surfaces=draw_without_replacement(key_surf, n_reflectances, n_surfaces))
 
 
-def draw_scenes(keys: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces: int) -> SceneDraw:
+def draw_scenes(keys: SceneKeys, n_lights: int, n_reflectances: int, n_surfaces: int) -> SceneDraw:
     """:func:`draw_scene` for a batch of per-scene keys ``(B,)``.
 
     Arguments:
@@ -192,7 +197,7 @@ def sample_one(
 
 @partial(jax.jit, static_argnames=("n_surfaces", "specular", "noise", "clip"))
 def sample_batch(
-    keys: PRNGKeyArray,
+    keys: SceneKeys,
     tables: SceneTables,
     n_surfaces: int,
     specular: Specular | None = None,
@@ -203,12 +208,12 @@ def sample_batch(
     return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip))(keys)
 
 
-def scene_keys(key: PRNGKeyArray, start: int, count: int) -> PRNGKeyArray:
+def scene_keys(key: PRNGKeyArray, start: int, count: int) -> SceneKeys:
     """Keys of scenes ``start .. start+count-1`` of a stream: independent of how it is chunked."""
     return jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(start, start + count, dtype=jnp.uint32))
 
 
-def sweep_keys(key: PRNGKeyArray, n_surfaces: int, start: int, count: int) -> PRNGKeyArray:
+def sweep_keys(key: PRNGKeyArray, n_surfaces: int, start: int, count: int) -> SceneKeys:
     """Keys of scenes ``start .. start+count-1`` of the stream of ``n_surfaces``-surface scenes of
     a sweep with ``key`` (the stream is ``fold_in(key, n_surfaces)``, so every scene size has its
     own scenes and one size's scenes do not depend on which other sizes a sweep runs).
