@@ -47,7 +47,8 @@ def cache_directory() -> Path:
 def enable_compilation_cache() -> None:
     """Keep XLA's compiled programs in ``<cache>/xla`` (unless the user configured a cache), so a
     second run of a command skips compilation as well as fitting."""
-    if not jax.config.read("jax_compilation_cache_dir"):
+    # The option is a dynamic attribute of jax.config (pyright cannot see it).
+    if not getattr(jax.config, "jax_compilation_cache_dir"):  # noqa: B009
         jax.config.update("jax_compilation_cache_dir", str(cache_directory() / "xla"))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 
