@@ -188,7 +188,7 @@ def test_true_illuminant_is_feasible_under_the_diagonal_model(models, default_wo
         rgb = canonical[rng.choice(len(canonical), PAD, replace=False)] * (lights[light] / white)
         u = lights[light] / lights[light].sum()
         violation = violation_of(
-            jnp.asarray(u[:, None], jnp.float32), jnp.asarray(rgb, jnp.float32), jnp.ones(PAD, bool)
+            jnp.asarray(u[None, :2], jnp.float32), jnp.asarray(rgb, jnp.float32), jnp.ones(PAD, bool)
         )
         # Illuminants on the hull boundary sit exactly on a facet: allow float32 rounding.
         assert float(violation[0]) <= 1e-5
@@ -294,7 +294,7 @@ def test_model_is_a_final_surface_estimator_and_a_jit_argument(models, pool):
 
 
 @pytest.mark.parametrize(
-    "options", [{"selector": "MAX"}, {"illumination": "convex"}, {"cone": "cube"}, {"fine": 2}, {"coarse": 3.5}]
+    "options", [{"selector": "MAX"}, {"illumination": "convex"}, {"cone": "cube"}, {"fine": 2}, {"coarse": 3}]
 )
 def test_fit_rejects_bad_options(default_world, options):
     options = {"selector": "ICA", **options}

@@ -376,7 +376,7 @@ def test_soft_variant_gradients_x64(default_world, models):
             lambda x: x.astype(jnp.float64) if eqx.is_array(x) else x, models[("ECRULE", None)]
         )
         rgb, mask = _scene(default_world, 8)
-        rgb = jnp.asarray(rgb, jnp.float64)
+        rgb, mask = jnp.asarray(rgb, jnp.float64), jnp.asarray(mask)
         soft = gamut.SoftGamutMapping(model, "SCWIA", 12.0)
         f = jax.jit(lambda r: soft(r, mask).illuminant)
         check_grads(f, (rgb,), order=1, modes=["rev"], eps=1e-6)

@@ -5,8 +5,9 @@ Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``
 differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``, ``margin``).
 """
 
+from ccjax.estimators.gamut.constraints_3d import Grid, evaluate
+from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.estimators.gamut.geometry import Facets, cone_planes, gamut_facets, nd_points
-from ccjax.estimators.gamut.kernel import Grid, GridOptions, evaluate
 from ccjax.estimators.gamut.model import GamutMapping, GamutModel, estimate_all, fit
 from ccjax.estimators.gamut.selectors import select
 from ccjax.estimators.gamut.soft import SoftGamutMapping
@@ -57,3 +58,7 @@ _register(
     "ND-ECRULE-SCWIA-12",
     "3-D gamut mapping [soft-][ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) by direction integration (§4.5.3, ch. 6)",
 )(_build)
+
+# The 2-D family (its labels register on import) after the 3-D ones, so the registry lists them in
+# the thesis' order.
+from ccjax.estimators.gamut import cip as cip  # noqa: E402

@@ -105,21 +105,24 @@ def nd_points(
 
 
 def cone_planes(directions: np.ndarray) -> np.ndarray:
-    """Unit outward face normals of the convex cone spanned by positive 3-vectors.
+    """Unit outward face normals of the convex cone spanned by non-negative 3-vectors.
 
     The cone's cross-section is the convex hull of the directions' chromaticities (any central
     projection gives the same cone, spec ch08-12 §1.7.3); each hull edge ``(a, b)`` gives the
     face normal ``a x b`` oriented away from the cone's interior.
 
     Arguments:
-        directions: ``(N >= 3, 3)`` positive vectors whose chromaticities are not collinear.
+        directions: ``(N >= 3, 3)`` non-negative vectors with positive sums whose chromaticities
+            are not collinear.
 
     Returns:
         ``(L, 3)`` unit normals, one per face.
     """
     directions = np.asarray(directions, np.float64)
-    if directions.ndim != 2 or directions.shape[1] != 3 or len(directions) < 3 or np.any(directions <= 0):
-        raise ValueError(f"directions: expected (N >= 3, 3) positive vectors, got shape {directions.shape}")
+    if directions.ndim != 2 or directions.shape[1] != 3 or len(directions) < 3:
+        raise ValueError(f"directions: expected (N >= 3, 3) vectors, got shape {directions.shape}")
+    if np.any(directions < 0) or np.any(directions.sum(axis=1) <= 0):
+        raise ValueError("directions: expected non-negative vectors with positive sums")
     chroma = directions / directions.sum(axis=1, keepdims=True)
     hull = ConvexHull(chroma[:, :2])
     inside = chroma[hull.vertices].mean(axis=0)
@@ -135,6 +138,27 @@ def cone_violation(planes: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``max_l n_l . x / |x|``: <= 0 inside the cone, else the sine of the angle outside it."""
     x = np.asarray(x, np.float64)
     return np.max(x @ planes.T, axis=-1) / np.linalg.norm(x, axis=-1)
+
+
+def map_cone_chromaticities(white: np.ndarray, whites: np.ndarray, samples: int = 257) -> np.ndarray:
+    """(r,g) chromaticities of the illuminants ``w_C / d`` for map directions ``d`` on the boundary
+    of the convex cone of the training maps ``w_C / e_j`` (Barnard 1995's convex approximation of
+    the illumination constraint): their box bounds every direction that approximation allows.
+
+    Arguments:
+        white: ``(3,)`` canonical white; whites: ``(N, 3)`` the training illuminants' whites.
+        samples: points per edge of the cone's cross-section.
+
+    Returns:
+        ``(E * samples, 2)`` chromaticities.
+    """
+    maps = np.asarray(white, np.float64) / np.asarray(whites, np.float64)
+    projected = maps / maps.sum(axis=1, keepdims=True)
+    extreme = projected[ConvexHull(projected[:, :2]).vertices]
+    t = np.linspace(0.0, 1.0, samples)[:, None, None]
+    boundary = ((1 - t) * extreme[None] + t * np.roll(extreme, -1, axis=0)[None]).reshape(-1, 3)
+    illuminants = white / boundary
+    return illuminants[:, :2] / illuminants.sum(axis=1, keepdims=True)
 
 
 def simplex_grid(step: float, box: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)) -> np.ndarray:

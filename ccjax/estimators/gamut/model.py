@@ -18,7 +18,8 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
 from ccjax.estimators.gamut import geometry
-from ccjax.estimators.gamut.kernel import GridOptions, evaluate
+from ccjax.estimators.gamut.constraints_3d import evaluate
+from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.estimators.gamut.selectors import SELECTORS, select
 from ccjax.world import World
 

@@ -18,11 +18,11 @@ illumination constraint ``V_I <= eps``; ECRULE-AVE adds its convex approximation
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 
 from ccjax.estimators.base import TINY, Estimate
-from ccjax.estimators.gamut.kernel import _BIG, Grid, directions, inverse_extent, violations
+from ccjax.estimators.gamut.constraints_3d import Grid, inverse_extent, violations
+from ccjax.estimators.gamut.engine import OUTSIDE, directions, pattern_search
 from ccjax.estimators.gamut.relaxation import relaxation_level, status_of
 
 SELECTORS = ("MV", "AVE", "ICA", "SCWIA")
@@ -50,16 +50,8 @@ def _masked_softmax(log_weight, mask):
 
 
 def _refine_max_volume(model, grid: Grid, selector: str, level, start):
-    """Pattern search for MV below the grid step.
-
-    A 5x5 stencil around the current point: move to its best point and double the step when it
-    improves, else halve the step. The maximum is often a vertex of the feasible polytope, a
-    kink of ``T(u)`` where the objective falls off along ridges; moving with an expanding step
-    follows such ridges where a fixed shrinking search stalls.
-    """
-    unit = jnp.arange(-2.0, 3.0, dtype=grid.rg.dtype)
-    su, sg = jnp.meshgrid(unit, unit, indexing="ij")
-    stencil = jnp.stack([su.ravel(), sg.ravel()], axis=1)
+    """MV below the grid step: the engine's pattern search on ``log(T^3 / (r g b))``, from the best
+    grid direction; returns ``e = u / T`` there."""
 
     def objective(rg):
         u, v, valid = directions(rg)
@@ -68,22 +60,11 @@ def _refine_max_volume(model, grid: Grid, selector: str, level, start):
         violation = mask_violation(model.constraint, selector, surface, illuminant, cone)
         feasible = valid & (violation <= level) & (inverse > 0)
         value = _log_volume(-jnp.log(jnp.where(feasible, inverse, 1.0)), u)
-        return jnp.where(feasible, value, -jnp.inf), inverse
+        return jnp.where(feasible, value, -jnp.inf)
 
-    def step(carry, _):
-        centre, value, half = carry
-        candidates = centre + stencil * half
-        values, _ = objective(candidates)
-        best = jnp.argmax(values)
-        better = values[best] > value
-        centre = jnp.where(better, candidates[best], centre)
-        return (centre, jnp.maximum(values[best], value), jnp.where(better, 2.0 * half, 0.5 * half)), None
-
-    value, _ = objective(start[None])
-    (centre, _, _), _ = jax.lax.scan(step, (start, value[0], grid.step / 2), None, length=model.options.refine_steps)
-    _, inverse = objective(centre[None])
-    u, _, _ = directions(centre[None])
-    return u[0] * inverse[0]
+    centre = pattern_search(objective, start, grid.step / 2, model.options.refine_steps)
+    u, v, _ = directions(centre[None])
+    return u[0] * inverse_extent(v, grid.observations)[0]
 
 
 def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
@@ -103,7 +84,7 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
     white = model.white.astype(grid.rg.dtype)
     bounded = grid.valid & (grid.inverse_extent > 0)
     violation = jnp.where(
-        bounded, mask_violation(model.constraint, selector, grid.surface, grid.illuminant, grid.cone), _BIG
+        bounded, mask_violation(model.constraint, selector, grid.surface, grid.illuminant, grid.cone), OUTSIDE
     )
     level, failed = relaxation_level(jnp.min(violation), model.options.first_level, model.options.levels)
     feasible = violation <= level

@@ -25,15 +25,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
-from ccjax.estimators.gamut.kernel import (
-    _BIG,
-    _dot,
-    _square_grid,
-    cone_violation,
-    directions,
-    locate,
-    observations,
-)
+from ccjax.estimators.gamut.constraints_3d import locate_box, observations
+from ccjax.estimators.gamut.engine import OUTSIDE, cone_violation, directions, dot, square_grid
 from ccjax.estimators.gamut.model import GamutModel
 from ccjax.estimators.gamut.relaxation import relaxation_level
 from ccjax.estimators.gamut.selectors import SELECTORS, finish, mask_violation
@@ -79,19 +72,19 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
         model, options = self.model, self.model.options
         rgb = jnp.asarray(rgb)
         obs, q, usable = observations(model, rgb, mask)
-        lo, hi = jax.lax.stop_gradient(locate(model, obs, q, usable, options))
-        rg, _ = _square_grid(lo - self.margin, hi + self.margin, options.fine_points)
+        lo, hi = jax.lax.stop_gradient(locate_box(model, obs, q, usable, options))
+        rg, _ = square_grid(lo - self.margin, hi + self.margin, options.fine_points)
         u, v, valid = directions(rg)
         dtype = rgb.dtype
 
         n_obs, k0, _ = obs.origin.shape
         scale = jnp.repeat(obs.scale, k0, axis=0)
-        ratio = _dot(v, obs.origin.reshape(n_obs * k0, 3)) * jax.lax.rsqrt(_dot(v * v, scale * scale))
+        ratio = dot(v, obs.origin.reshape(n_obs * k0, 3)) * jax.lax.rsqrt(dot(v * v, scale * scale))
         surface = _soft_max(ratio, self.kappa)
         # 1/T as a p-norm (p = 1/tau) of the positive constraint values: a soft maximum with a
         # relative temperature; the hard maximum only rescales it (homogeneity), so stopping its
         # gradient changes nothing.
-        top = _dot(v, obs.top.reshape(-1, 3))
+        top = dot(v, obs.top.reshape(-1, 3))
         hard = jax.lax.stop_gradient(jnp.maximum(jnp.max(top, axis=1, keepdims=True), 1e-30))
         ratio_top = jnp.maximum(top, 0.0) / hard
         inverse = hard[:, 0] * jnp.sum(ratio_top ** (1.0 / self.tau), axis=1) ** self.tau
@@ -100,7 +93,7 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
         violation = mask_violation(model.constraint, self.selector, surface, illuminant, cone)
 
         bounded = valid & (inverse > 0)
-        violation = jnp.where(bounded, violation, _BIG)
+        violation = jnp.where(bounded, violation, OUTSIDE)
         level, failed = relaxation_level(jax.lax.stop_gradient(jnp.min(violation)), options.first_level, options.levels)
         log_mask = jax.nn.log_sigmoid((level - violation) / self.kappa)
         log_mask = jnp.where(bounded, log_mask, -jnp.inf)

@@ -1,0 +1,235 @@
+"""The illuminant-direction engine shared by every gamut-mapping family (Barnard 1999 §2.3.4,
+§4.5.3; spec ch08-12 §1.8).
+
+An illuminant direction is its chromaticity ``u = (r, g, 1 - r - g)``, its diagonal maps are
+``t * m(u)`` with ``m(u) = w_C / u``. A family is a *constraint set*: a function giving, for a
+list of directions, the normalised violation (a sine, ``<= 0`` where feasible) of the region its
+selectors use; 3-D families (CRULE, ECRULE, ND) also bound each ray by ``T(u)``. The engine owns
+what every family shares:
+
+* the direction grids (:func:`directions`, :func:`square_grid`) and their edge threshold;
+* the locating stage (:func:`locate`): a few square grids, each over the box the previous one
+  found, around the feasible region at the first relaxation level that has feasible directions;
+* the cones through the origin (:func:`cone_violation`), for illumination constraints;
+* the pattern search that refines MV below the grid step (:func:`pattern_search`).
+
+The relaxation ladder is :mod:`ccjax.estimators.gamut.relaxation`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from ccjax.estimators.gamut import relaxation
+from ccjax.estimators.gamut.relaxation import relaxation_level
+
+# Directions closer than this to the edge of the chromaticity triangle are never evaluated.
+EDGE = 1e-4
+# Violation value of directions outside the chromaticity triangle (a sine is <= 1); above every
+# relaxation level.
+OUTSIDE = 4.0
+
+Violation = Callable[[Float[Array, "G 2"]], Float[Array, " G"]]
+
+
+@dataclass(frozen=True)
+class GridOptions:
+    """Static sizes of the direction grids (hashable; part of the jit cache key).
+
+    Attributes:
+        locate_points, locate_iterations: the locating stage evaluates ``locate_points^2``
+            directions per iteration, each over the box the previous one found.
+        locate_safety: 0, or the factor on the first-order bound of the violation inside a
+            locating cell (a cell counts as feasible when its bound is; catches thin feasible
+            slivers that pass between the cell centres of a single coarse pass).
+        clip_to_domain: keep the located box inside the domain (for domains that bound the
+            feasible set, such as CIP's illumination-constraint box; CRULE's domain is the
+            whole triangle, whose edges the direction validity already handles).
+        fine_points: per-axis points of the fine grid (``fine_points^2`` directions).
+        refine_steps: iterations of the MV pattern search (it starts at half a fine step).
+        locate_observations: observations kept for locating (the extreme chromaticities in this
+            many directions) when a scene has more.
+        fine_observations: observations kept for the fine stage when a scene has more (at most
+            about 25 are support points at 64 surfaces);
+        large_scene, large_fine_observations: the budget for scenes of more than ``large_scene``
+            observations (at most about 43 at 1024 surfaces with the ND gamut).
+        reduction_samples: per-axis sample directions used to pick those observations.
+        first_level, levels: relaxation levels ``first_level * 2^i``, ``i < levels``.
+    """
+
+    locate_points: int = 16
+    locate_iterations: int = 4
+    locate_safety: float = 0.0
+    clip_to_domain: bool = False
+    fine_points: int = 45
+    refine_steps: int = 24
+    locate_observations: int = 48
+    fine_observations: int = 32
+    large_scene: int = 128
+    large_fine_observations: int = 48
+    reduction_samples: int = 5
+    first_level: float = relaxation.FIRST_LEVEL
+    levels: int = relaxation.LEVELS
+
+
+# ---------------------------------------------------------------------------------------------
+# direction grids
+
+
+def directions(rg: Float[Array, "G 2"]) -> tuple[Float[Array, "G 3"], Float[Array, "G 3"], Bool[Array, " G"]]:
+    """``u`` (with out-of-triangle directions replaced by the centre), ``v = 1/u`` and validity."""
+    u = jnp.concatenate([rg, 1.0 - jnp.sum(rg, axis=-1, keepdims=True)], axis=-1)
+    valid = jnp.all(u > EDGE, axis=-1)
+    u = jnp.where(valid[..., None], u, 1.0 / 3.0)
+    return u, 1.0 / u, valid
+
+
+def square_grid(lo: Float[Array, "2"], hi: Float[Array, "2"], n: int) -> tuple[Float[Array, "G 2"], Float[Array, "2"]]:
+    """Cell centres of an ``n x n`` grid over the (r,g) box ``[lo, hi]`` (r-major), and its step."""
+    step = (hi - lo) / n
+    offsets = jnp.arange(n, dtype=lo.dtype) + 0.5
+    rr, gg = jnp.meshgrid(lo[0] + offsets * step[0], lo[1] + offsets * step[1], indexing="ij")
+    return jnp.stack([rr.ravel(), gg.ravel()], axis=1), step
+
+
+def box_of(points: Float[Array, "G 2"], steps, selected: Bool[Array, " G"]) -> tuple[Array, Array]:
+    """The box of the selected points, widened by ``steps``."""
+    lo = jnp.min(jnp.where(selected[:, None], points - steps, jnp.inf), axis=0)
+    hi = jnp.max(jnp.where(selected[:, None], points + steps, -jnp.inf), axis=0)
+    return lo, hi
+
+
+# ---------------------------------------------------------------------------------------------
+# length-3 inner products as fused multiply-adds
+
+
+def dot(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Array, "G M"]:
+    """``v_g . coef_m`` for every pair, written out so XLA fuses it into the reduction that
+    follows (a K=3 matmul would materialise ``(G, M)``; a ``(G, P, K)`` layout compiles to slow
+    loops)."""
+    return v[:, None, 0] * coef[None, :, 0] + v[:, None, 1] * coef[None, :, 1] + v[:, None, 2] * coef[None, :, 2]
+
+
+def dot_minor(xt: Float[Array, "3 G"], coef: Float[Array, "M 3"]) -> Float[Array, "M G"]:
+    """The same with the directions as the minor (vectorised) axis, for short plane lists."""
+    return coef[:, 0, None] * xt[None, 0] + coef[:, 1, None] * xt[None, 1] + coef[:, 2, None] * xt[None, 2]
+
+
+def cone_violation(x: Float[Array, "G 3"], planes: Float[Array, "L 3"]) -> Float[Array, " G"]:
+    """``max_l n_l . x / |x|`` for a cone through the origin given by unit face normals ``n_l``
+    (:func:`~ccjax.estimators.gamut.geometry.cone_planes`): ``<= 0`` inside, else the sine of the
+    angle outside it."""
+    # Directions minor (L, G): a (G, 3) layout strides over the RGB axis for only L ~ 12 planes
+    # (2.8x slower in isolation; about equal inside the full kernel), and a K=3 matmul is slower.
+    xt = x.T
+    return jnp.max(dot_minor(xt, planes), axis=0) * jax.lax.rsqrt(jnp.sum(xt * xt, axis=0))
+
+
+# ---------------------------------------------------------------------------------------------
+# locating stage
+
+
+def cell_lower_bound(values: Float[Array, " G"], n: int, safety: float) -> Float[Array, " G"]:
+    """A first-order lower bound of the violation anywhere in each cell of an ``n x n`` grid:
+    the centre's value minus ``safety`` times half the largest change to a neighbour along each
+    axis (the factor allows for curvature)."""
+    grid = values.reshape(n, n)
+
+    def change(axis):
+        step = jnp.abs(jnp.diff(grid, axis=axis))
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (1, 0)
+        before = jnp.pad(step, pad, mode="edge")
+        pad[axis] = (0, 1)
+        after = jnp.pad(step, pad, mode="edge")
+        return jnp.maximum(before, after)
+
+    return (grid - safety * 0.5 * (change(0) + change(1))).ravel()
+
+
+def locate(violation: Violation, domain: Float[Array, "2 2"], options: GridOptions) -> tuple[Array, Array]:
+    """The locating stage: a box around the feasible region at the scene's relaxation level.
+
+    Each iteration evaluates a square grid over the current box (the first: ``domain``) and keeps
+    the points at the first relaxation level reached so far, padded by one step (and kept inside
+    the domain when ``options.clip_to_domain``); when none of its own points is at that level it zooms to one step around its
+    best point. One compiled body serves every iteration.
+
+    Arguments:
+        violation: ``rg (G, 2) -> (G,)`` the constraint set's violation (``OUTSIDE`` outside
+            the chromaticity triangle).
+        domain: ``(2, 2)`` lower and upper (r,g) corners of the first grid.
+        options: the grid sizes.
+
+    Returns:
+        ``(lo, hi)`` corners of the box.
+    """
+    n = options.locate_points
+
+    def iteration(carry, _):
+        lo, hi, best = carry
+        points, step = square_grid(lo, hi, n)
+        values = violation(points)
+        if options.locate_safety > 0:
+            values = cell_lower_bound(values, n, options.locate_safety)
+        nearest = jnp.argmin(values)
+        best = jnp.minimum(best, values[nearest])
+        level, _ = relaxation_level(best, options.first_level, options.levels)
+        chosen = values <= level
+        chosen = jnp.where(jnp.any(chosen), chosen, jnp.arange(values.shape[0]) == nearest)
+        lo, hi = box_of(points, step[None, :], chosen)
+        if options.clip_to_domain:
+            lo, hi = jnp.maximum(lo, domain[0]), jnp.minimum(hi, domain[1])
+        return (lo, hi, best), None
+
+    start = (domain[0], domain[1], jnp.asarray(OUTSIDE, domain.dtype))
+    (lo, hi, _), _ = jax.lax.scan(iteration, start, None, length=options.locate_iterations)
+    return lo, hi
+
+
+# ---------------------------------------------------------------------------------------------
+# MV refinement
+
+
+def pattern_search(
+    objective: Callable[[Float[Array, "N 2"]], Float[Array, " N"]],
+    start: Float[Array, "2"],
+    half_step: Float[Array, "2"],
+    steps: int,
+) -> Float[Array, "2"]:
+    """Maximise ``objective`` (``-inf`` where infeasible) from a feasible (r,g) start.
+
+    A 5x5 stencil around the current point: move to its best point and double the step when it
+    improves, else halve the step. MV's maximum is often a vertex of the feasible set (a kink of
+    ``T(u)``, or the tip of a thin spike of a 2-D set) where the objective falls off along ridges;
+    moving with an expanding step follows such ridges where a fixed shrinking search stalls.
+
+    Arguments:
+        objective: ``rg (N, 2) -> (N,)``.
+        start: the best grid direction; ``half_step``: the initial stencil spacing.
+        steps: iterations (static).
+
+    Returns:
+        The best (r,g) found.
+    """
+    unit = jnp.arange(-2.0, 3.0, dtype=start.dtype)
+    su, sg = jnp.meshgrid(unit, unit, indexing="ij")
+    stencil = jnp.stack([su.ravel(), sg.ravel()], axis=1)
+
+    def step(carry, _):
+        centre, value, half = carry
+        candidates = centre + stencil * half
+        values = objective(candidates)
+        best = jnp.argmax(values)
+        better = values[best] > value
+        centre = jnp.where(better, candidates[best], centre)
+        return (centre, jnp.maximum(values[best], value), jnp.where(better, 2.0 * half, 0.5 * half)), None
+
+    value = objective(start[None])[0]
+    (centre, _, _), _ = jax.lax.scan(step, (start, value, half_step), None, length=steps)
+    return centre
