@@ -102,6 +102,7 @@ def run_sharpen(args) -> int:
     import numpy as np
 
     from ccjax import sharpening
+    from ccjax.experiments import chapter5_report
 
     if args.rank_cameras:
         return run_rank_cameras(args)
@@ -127,7 +128,7 @@ def run_sharpen(args) -> int:
             raise ValueError(f"light: expected an index in [0, {n_lights}), got {args.light}")
         transform = sharpening.optimal_sharpening(world, world.test_illuminants[args.light : args.light + 1])[0]
     info["T"] = np.asarray(transform).tolist()
-    info.update(sharpening.summary(world, transform))
+    info.update(chapter5_report.summary(world, transform))
     if args.json:
         print(json.dumps(info, indent=1))
     else:
@@ -154,7 +155,7 @@ def run_sharpen(args) -> int:
         )
         print(f"  ACTUAL         none / T      {info['actual_unsharpened']:8.3f} / {info['actual_sharpened']:8.3f}")
     if args.plot:
-        sharpening.plot_sensors(
+        chapter5_report.plot_sensors(
             world,
             transform,
             args.plot,

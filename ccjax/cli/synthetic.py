@@ -147,9 +147,9 @@ def run_reproduce(args) -> int:
     key = jax.random.key(args.seed)
     if args.table == "5.1":
         # Table 5.1 has its own protocol (sharpening variants, whole-database mapping error).
-        from ccjax import sharpening
+        from ccjax.experiments import chapter5_report
 
-        result = sharpening.reproduce_5_1(world, args.methods, args.scenes, key, progress=not args.no_progress)
+        result = chapter5_report.reproduce_5_1(world, args.methods, args.scenes, key, progress=not args.no_progress)
     else:
         methods = args.methods
         if methods is None and args.table in thesis.TABLES:

@@ -77,7 +77,7 @@ class SharpeningStudy:
         sharpening: its :class:`ccjax.sharpening.NewSharpening` result.
         n_scenes: test scenes per comparison.
         comparisons: one row per estimator: ``{"method", "none", "new"}`` with the
-            ``evaluate_transforms`` results (``None`` for estimators not registered yet).
+            ``ccjax.experiments.chapter5.evaluate_transforms`` results (``None`` for estimators not registered yet).
     """
 
     ranking: list[dict]
@@ -110,8 +110,9 @@ def sharpening_study(
     """
     from ccjax import sharpening
     from ccjax.camera import Camera
+    from ccjax.experiments import chapter5, chapter5_report
 
-    ranking = sharpening.rank_cameras(data_dir)
+    ranking = chapter5_report.rank_cameras(data_dir)
     least = ranking[0]["camera"]
     world = World.default(Camera.from_name(least, data_dir), seed=seed)
     new = sharpening.new_sharpening(world, lambda_p=lambda_p)
@@ -121,6 +122,6 @@ def sharpening_study(
         if not is_registered(label):
             comparisons.append({"method": label, "none": None, "new": None})
             continue
-        out = sharpening.evaluate_transforms(world, label, transforms, n_scenes, key=jax.random.key(seed))
+        out = chapter5.evaluate_transforms(world, label, transforms, n_scenes, key=jax.random.key(seed))
         comparisons.append({"method": label, "none": out["none"], "new": out["new"]})
     return SharpeningStudy(ranking, least, new, n_scenes, comparisons)
