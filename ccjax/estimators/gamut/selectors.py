@@ -1,4 +1,6 @@
-"""Solution selection from the fine direction grid (Barnard 1999 §4.5.3, §6.2; spec ch08-12 §1.8).
+"""Solution selection from the fine direction grid: the masks, and dispatch to the selector modules
+(:mod:`~ccjax.estimators.gamut.mv`, :mod:`~ccjax.estimators.gamut.average`,
+:mod:`~ccjax.estimators.gamut.scwia`) (Barnard 1999 §4.5.3, §6.2; spec ch08-12 §1.8).
 
 Every selector reads the same per-direction quantities (``T(u)`` and the violations) and
 differs only in the mask and the weights:
@@ -18,12 +20,16 @@ illumination constraint ``V_I <= eps``; ECRULE-AVE adds its convex approximation
 
 from __future__ import annotations
 
+import functools
+
 import jax.numpy as jnp
 
 from ccjax.estimators.base import TINY, Estimate
-from ccjax.estimators.gamut.constraints_3d import Grid, inverse_extent, violations
-from ccjax.estimators.gamut.engine import OUTSIDE, directions, pattern_search
+from ccjax.estimators.gamut import average, mv, scwia
+from ccjax.estimators.gamut.constraints_3d import Grid
+from ccjax.estimators.gamut.engine import OUTSIDE, directions
 from ccjax.estimators.gamut.relaxation import relaxation_level, status_of
+from ccjax.estimators.gamut.weights import hard_mask
 
 SELECTORS = ("MV", "AVE", "ICA", "SCWIA")
 
@@ -35,36 +41,6 @@ def mask_violation(constraint: str, selector: str, surface, illuminant, cone):
     if selector == "AVE":
         return jnp.maximum(surface, cone)
     return jnp.maximum(surface, illuminant)
-
-
-def _log_volume(log_t, u):
-    """``log(T^3 / (r g b))``: log of the coordinate product of the map ``T m(u)`` over prod(w_C)."""
-    return 3.0 * log_t - jnp.sum(jnp.log(u), axis=-1)
-
-
-def _masked_softmax(log_weight, mask):
-    log_weight = jnp.where(mask, log_weight, -jnp.inf)
-    top = jnp.max(log_weight)
-    weight = jnp.where(mask, jnp.exp(log_weight - jnp.where(jnp.isfinite(top), top, 0.0)), 0.0)
-    return weight / jnp.maximum(jnp.sum(weight), 1e-30)
-
-
-def _refine_max_volume(model, grid: Grid, selector: str, level, start):
-    """MV below the grid step: the engine's pattern search on ``log(T^3 / (r g b))``, from the best
-    grid direction; returns ``e = u / T`` there."""
-
-    def objective(rg):
-        u, v, valid = directions(rg)
-        inverse = inverse_extent(v, grid.observations)
-        _, surface, illuminant, cone = violations(model, v, valid, grid.observations)
-        violation = mask_violation(model.constraint, selector, surface, illuminant, cone)
-        feasible = valid & (violation <= level) & (inverse > 0)
-        value = _log_volume(-jnp.log(jnp.where(feasible, inverse, 1.0)), u)
-        return jnp.where(feasible, value, -jnp.inf)
-
-    centre = pattern_search(objective, start, grid.step / 2, model.options.refine_steps)
-    u, v, _ = directions(centre[None])
-    return u[0] * inverse_extent(v, grid.observations)[0]
 
 
 def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
@@ -91,22 +67,15 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
     u, v, _ = directions(grid.rg)
     log_t = -jnp.log(jnp.where(bounded, grid.inverse_extent, 1.0))
 
+    log_mask = hard_mask(feasible)
     if selector == "MV":
-        score = jnp.where(feasible, _log_volume(log_t, u), -jnp.inf)
-        best = jnp.argmax(score)
-        illuminant = _refine_max_volume(model, grid, selector, level, grid.rg[best])
+        illuminant = mv.hard(
+            model, grid, functools.partial(mask_violation, model.constraint, selector), level, feasible, log_t
+        )
     elif selector in ("AVE", "ICA"):
-        weight = _masked_softmax(3.0 * log_t - 2.0 * jnp.sum(jnp.log(u), axis=-1), feasible)
-        extent = jnp.exp(log_t)
-        centroid = 0.75 * jnp.sum((weight * extent)[:, None] * (white * v), axis=0)
-        illuminant = white / jnp.maximum(centroid, 1e-30)
+        illuminant = average.estimate(u, v, log_t, white, log_mask)
     elif selector == "SCWIA":
-        log_solid_angle = -1.5 * jnp.log(jnp.sum(u * u, axis=-1))
-        log_weight = power / 3.0 * (_log_volume(log_t, u) + jnp.sum(jnp.log(white))) + log_solid_angle
-        weight = _masked_softmax(log_weight, feasible)
-        chroma = jnp.sum(weight[:, None] * u, axis=0)
-        brightness = jnp.sum(weight * jnp.where(bounded, grid.inverse_extent, 0.0))
-        illuminant = chroma * brightness
+        illuminant = scwia.estimate(u, log_t, jnp.where(bounded, grid.inverse_extent, 0.0), white, power, log_mask)
     else:
         raise ValueError(f"selector: expected one of {SELECTORS}, got {selector!r}")
 

@@ -7,8 +7,9 @@ feasibility is an indicator. Here every non-smooth step gets a temperature:
   ``(sum max(d, 0)^(1/tau))^tau`` (a relative temperature);
 * the surface violation is a soft maximum with width ``kappa`` (sine units) and feasibility is
   ``sigmoid((eps - V)/kappa)`` (ECRULE multiplies the illumination constraint's sigmoid);
-* MV becomes a softmax over directions with inverse temperature ``beta`` on ``log(T^3/(rgb))``;
-  AVE, ICA and SCWIA already are weighted averages and just use the soft mask as a weight.
+* the selectors are the modules' soft forms: MV a softmax over directions with inverse
+  temperature ``beta`` on ``log(T^3/(rgb))`` (:func:`~ccjax.estimators.gamut.mv.soft`); AVE, ICA and
+  SCWIA are weighted averages that take the soft mask as their log-mask.
 
 Gradients reach the input RGB and the model's arrays (canonical gamut facets, white). The grid
 box comes from the hard locating stage under ``stop_gradient`` (it is piecewise constant in the
@@ -25,6 +26,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
+from ccjax.estimators.gamut import average, mv, scwia
 from ccjax.estimators.gamut.constraints_3d import locate_box, observations
 from ccjax.estimators.gamut.engine import OUTSIDE, cone_violation, directions, dot, square_grid
 from ccjax.estimators.gamut.model import GamutModel
@@ -98,20 +100,13 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
         log_mask = jax.nn.log_sigmoid((level - violation) / self.kappa)
         log_mask = jnp.where(bounded, log_mask, -jnp.inf)
         log_t = -jnp.log(jnp.where(bounded, inverse, 1.0))
-        log_u = jnp.sum(jnp.log(u), axis=-1)
         white = model.white.astype(dtype)
 
+        inverse = jnp.where(bounded, inverse, 0.0)
         if self.selector == "MV":
-            weight = jax.nn.softmax(self.beta * (3.0 * log_t - log_u) + log_mask)
-            estimate = jnp.sum((weight * jnp.where(bounded, inverse, 0.0))[:, None] * u, axis=0)
+            estimate = mv.soft(u, log_t, inverse, log_mask, self.beta)
         elif self.selector in ("AVE", "ICA"):
-            weight = jax.nn.softmax(3.0 * log_t - 2.0 * log_u + log_mask)
-            centroid = 0.75 * jnp.sum((weight * jnp.exp(log_t))[:, None] * (white * v), axis=0)
-            estimate = white / centroid
+            estimate = average.estimate(u, v, log_t, white, log_mask)
         else:
-            log_weight = self.power / 3.0 * (3.0 * log_t - log_u + jnp.sum(jnp.log(white))) - 1.5 * jnp.log(
-                jnp.sum(u * u, axis=-1)
-            )
-            weight = jax.nn.softmax(log_weight + log_mask)
-            estimate = jnp.sum(weight[:, None] * u, axis=0) * jnp.sum(weight * jnp.where(bounded, inverse, 0.0))
+            estimate = scwia.estimate(u, log_t, inverse, white, self.power, log_mask)
         return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype))
