@@ -236,8 +236,8 @@ def test_soft_estimate_close_to_hard(default_world, batch, label):
 def test_soft_gradients(default_world, batch, label):
     """check_grads (x64) with respect to the input RGB and the matrix, at the soft-vs-hard settings."""
     model = registry.fit(label, default_world, **SOFT)
-    direction = jnp.array([0.3, -0.5, 0.2])
     with jax.enable_x64(True):
+        direction = jnp.array([0.3, -0.5, 0.2], jnp.float64)
         model64 = as64(model)
         rgb, mask = jnp.asarray(batch.rgb[0], jnp.float64), batch.mask[0]
 
@@ -366,7 +366,7 @@ def test_dropped_in_matrix_is_used(default_world, batch):
         ("C-by-C-MMSE", {"sigma": -1.0}, "sigma"),
         ("C-by-C-MMSE", {"floor": 0.0}, "floor"),
         ("C-by-C-MLM", {"mlm_width": 0.0}, "mlm_width"),
-        ("C-by-C-01", {"tolerance": -1}, "tolerance"),
+        ("C-by-C-01", {"tolerance": -1.0}, "tolerance"),
         ("RGB-C-by-C-MMSE", {"l_bins": 0}, "l_bins"),
         ("RGB-C-by-C-MMSE", {"brightness_range": 0.5}, "brightness_range"),
         ("RGB-C-by-C-MMSE", {"specular": "yes"}, "specular"),

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from jax.test_util import check_grads
+from small_world import small_world
 from spatial_reference import grey_edge_reference
 
 from ccjax.estimators import registry
@@ -86,12 +87,10 @@ def test_labels_parse():
 
 
 def test_fit_validates():
-    class W:  # only the fallback is taken from the world
-        train_illuminants = None
-
+    world = small_world()  # only the fallback is taken from the world
     for kwargs, name in [({"order": 3}, "order"), ({"p": 0.5}, "p"), ({"sigma": -1.0}, "sigma")]:
         with pytest.raises(ValueError, match=name):
-            fit_grey_edge(W(), **kwargs)
+            fit_grey_edge(world, **kwargs)
 
 
 def test_vmap_over_batch_equals_per_image():
@@ -155,7 +154,7 @@ def test_gradient_with_respect_to_the_norm():
         model = GreyEdge(order=1, p=jnp.asarray(4.0), sigma=1.0, fallback=jnp.asarray(FALLBACK, jnp.float64))
 
         def chromaticity(p):
-            e = eqx.tree_at(lambda m: m.p, model, p)(image, mask_j).illuminant
+            e = eqx.tree_at(lambda m: m.p, model, jnp.asarray(p))(image, mask_j).illuminant  # probes are NumPy
             return e / jnp.sum(e)
 
         check_grads(chromaticity, (jnp.asarray(4.0),), order=1, modes=("rev",), eps=1e-6, atol=1e-6, rtol=1e-5)

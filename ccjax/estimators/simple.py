@@ -74,7 +74,8 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
         inverse_peak = 1.0 / jnp.where(usable, peak, 1.0)
         # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
         exponent = int(self.p) if float(self.p).is_integer() else self.p
-        mean = pairwise_reduce((masked * inverse_peak) ** exponent, jnp.add) / jnp.maximum(count, 1)
+        total = pairwise_reduce((masked * inverse_peak) ** exponent, jnp.add)
+        mean = total / jnp.maximum(count, 1).astype(total.dtype)
         positive = mean > 0
         root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
         # The normalised mean lies in (0, 1], so the estimate is finite wherever ``usable``: no

@@ -174,7 +174,7 @@ def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: 
     scaled = jnp.where(weights, values / peak, 0.0)
     positive_scaled = weights & (scaled > 0)
     powered = jnp.where(positive_scaled, jnp.where(positive_scaled, scaled, 1.0) ** finite_p, 0.0)
-    mean = jnp.sum(powered, axis=(1, 2)) / count
+    mean = jnp.sum(powered, axis=(1, 2)) / count.astype(powered.dtype)
     positive = mean > 0
     norm = peak * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / finite_p), 0.0)
     return jnp.where(infinite, maximum, norm)

@@ -83,14 +83,14 @@ def soft_presence_score(
         ``(sum over cells of presence x row, number of occupied cells)``.
     """
     size = cells.shape[0]
-    key = jnp.where(merge, cells, -1 - jnp.arange(size))  # unmergeable entries get unique keys
+    key = jnp.where(merge, cells, -1 - jnp.arange(size, dtype=cells.dtype))  # unmergeable entries get unique keys
     order = jnp.argsort(key)
     key, cells, weights = key[order], cells[order], weights[order]
     start = key != jnp.concatenate([key[:1] - 1, key[:-1]])
     run = jnp.cumsum(start) - 1
     eps = jnp.finfo(weights.dtype).eps
     absent = jax.ops.segment_sum(jnp.log1p(-jnp.clip(weights, 0.0, 1.0 - 4 * eps)), run, num_segments=size)
-    present = -jnp.expm1(absent)[run] * start
+    present = -jnp.expm1(absent)[run] * start.astype(absent.dtype)
     rows = log_probability.at[cells].get(mode="promise_in_bounds")
     return jnp.sum(present[:, None] * rows, axis=0), jnp.sum(present)
 
@@ -105,6 +105,6 @@ def soft_presence_scores(
     (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
     ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
     cells = (ri[:, :, None] * RG_BINS + gi[:, None, :]).reshape(-1)
-    weights = (rw[:, :, None] * gw[:, None, :] * valid[:, None, None]).reshape(-1)
+    weights = (rw[:, :, None] * gw[:, None, :] * valid[:, None, None].astype(rw.dtype)).reshape(-1)
     score, _ = soft_presence_score(log_probability, cells, weights, jnp.ones_like(cells, bool))
     return score

@@ -70,7 +70,8 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
         valid = valid_pixels(rgb, mask)
         brightness = jnp.sum(rgb, axis=-1)
         count = jnp.sum(valid)
-        initial = self.brightness_factor * jnp.sum(jnp.where(valid, brightness, 0.0)) / jnp.maximum(count, 1)
+        lit = jnp.sum(jnp.where(valid, brightness, 0.0))
+        initial = self.brightness_factor * lit / jnp.maximum(count, 1).astype(lit.dtype)
         initial = jnp.where(count > 0, initial, 1.0)
         # Relative levels b_q / B0 = range^(2q/(n-1) - 1), q = 0..n-1.
         relative = self.brightness_range ** jnp.linspace(-1.0, 1.0, self.n_levels, dtype=rgb.dtype)
@@ -103,7 +104,7 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
             rows = self.log_probability.at[cell].get(mode="promise_in_bounds")
             score = jnp.sum(jnp.where(use[:, None], rows, 0.0), axis=0)
             if self.method == "presence":
-                score = score - jnp.sum(use) * jnp.log(ratio)
+                score = score - jnp.sum(use).astype(score.dtype) * jnp.log(ratio)
             return score
 
         return step
@@ -116,7 +117,7 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
         (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
         ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
         rg_cell = jnp.asarray(RG_CELLS)[ri[:, :, None] * RG_BINS + gi[:, None, :]]  # (P, 2, 2)
-        rg_weight = rw[:, :, None] * gw[:, None, :] * valid[:, None, None]
+        rg_weight = rw[:, :, None] * gw[:, None, :] * valid[:, None, None].astype(rw.dtype)
 
         def step(ratio):
             li, lw = soft_axis(brightness / (initial * ratio) * self.l_bins, softness)

@@ -92,7 +92,8 @@ class ColourByCorrelation01(AbstractSurfaceEstimator):
         valid = valid_pixels(rgb, mask)
         counts = presence_scores(self.compatible, rgb, valid)
         chosen = counts >= jnp.max(counts) - self.tolerance
-        rg = jnp.sum(jnp.where(chosen[:, None], self.illuminant_rg, 0.0), axis=0) / jnp.sum(chosen)
+        total = jnp.sum(jnp.where(chosen[:, None], self.illuminant_rg, 0.0), axis=0)
+        rg = total / jnp.sum(chosen).astype(total.dtype)
         return with_fallback(rg_to_rgb(rg), jnp.any(valid), self.fallback)
 
 

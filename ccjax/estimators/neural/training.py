@@ -87,7 +87,7 @@ def training_batch(
     scenes = sample_batch(scene_keys(key_scenes, 0, batch_size), tables, recipe.max_surfaces, recipe.specular)
     low, high = math.log(recipe.min_surfaces), math.log(recipe.max_surfaces + 1)
     count = jnp.floor(jnp.exp(jax.random.uniform(key_count, (batch_size, 1), minval=low, maxval=high)))
-    mask = jnp.arange(recipe.max_surfaces)[None, :] < count
+    mask = jnp.arange(recipe.max_surfaces, dtype=count.dtype)[None, :] < count
     rgb = scenes.rgb * (1.0 + recipe.noise * jax.random.normal(key_noise, scenes.rgb.shape))
     rgb = jnp.maximum(rgb, 0.0)
     histograms = jax.vmap(occupied_bins)(rgb, mask)
@@ -123,7 +123,10 @@ def _train_chunk(net, opt_state, keys, steps, tables, recipe, batch_size, peak_r
         loss, grads = eqx.filter_value_and_grad(training_loss)(net, histograms, targets)
         rate = _cosine_rate(index, peak_rate, total_steps)
         opt_state.hyperparams["learning_rate"] = rate.astype(opt_state.hyperparams["learning_rate"].dtype)
-        updates, opt_state = _OPTIMISER.update(grads, opt_state, net)
+        # optax's bias correction raises a float32 decay to the int32 step count; the suite's strict
+        # promotion would refuse it, so optax runs under JAX's standard rules (the values it had).
+        with jax.numpy_dtype_promotion("standard"):
+            updates, opt_state = _OPTIMISER.update(grads, opt_state, net)
         return (eqx.apply_updates(net, updates), opt_state), loss
 
     (net, opt_state), losses = jax.lax.scan(step, (net, opt_state), (keys, steps))
