@@ -65,7 +65,8 @@ def main() -> None:
     surfaces = [int(n) for n in args.surfaces.split(",")]
 
     print(
-        f"jax {jax.__version__}, backend {jax.default_backend()}, cpus {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}"
+        f"jax {jax.__version__}, backend {jax.default_backend()}, "
+        f"cpus {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}"
     )
     world = World.barnard1999()
     labels = ("ECRULE-SCWIA-12", "CRULE-AVE")
@@ -76,7 +77,8 @@ def main() -> None:
     A, b = oracle.hull_halfspaces(np.asarray(world.canonical_rgb, np.float64))
     white = np.asarray(world.canonical_white, np.float64)
     print(
-        f"throughput, median of {args.repeats} warm runs (cpu = scenes per CPU-second of this process x {os.cpu_count()} cores):"
+        f"throughput, median of {args.repeats} warm runs (cpu "
+        f"= scenes per CPU-second of this process x {os.cpu_count()} cores):"
     )
     for n in surfaces:
         batch = scenes.sample(jax.random.key(n), world, BATCH[n], n)
@@ -85,11 +87,12 @@ def main() -> None:
             start = time.perf_counter()
             jax.block_until_ready(_estimate(model, batch.rgb, batch.mask))
             first = time.perf_counter() - start
-            wall, cpu = _timed(lambda: _estimate(model, batch.rgb, batch.mask), args.repeats)
+            wall, cpu = _timed(lambda model=model, batch=batch: _estimate(model, batch.rgb, batch.mask), args.repeats)
             rates[label] = BATCH[n] / wall
             print(
                 f"  {label:<16}{n:>6} surfaces: {BATCH[n] / wall:>8.0f} scenes/s wall, "
-                f"{BATCH[n] / cpu * os.cpu_count():>8.0f} scenes/s cpu (batch {BATCH[n]} in vmapped blocks of {type(model).block_size}, first call {first:.1f} s)"
+                f"{BATCH[n] / cpu * os.cpu_count():>8.0f} scenes/s cpu (batch {BATCH[n]} "
+                f"in vmapped blocks of {type(model).block_size}, first call {first:.1f} s)"
             )
         # The exact oracle (CRULE-AVE: halfspace intersection + exact centroid) on the same scenes.
         rgb, mask = np.asarray(batch.rgb, np.float64), np.asarray(batch.mask)
@@ -102,7 +105,8 @@ def main() -> None:
                 white / poly.centroid
         rate = count / (time.perf_counter() - start)
         print(
-            f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {rate:>8.1f} scenes/s (one core) -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'] / rate:.0f}x"
+            f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {rate:>8.1f} scenes/s "
+            f"(one core) -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'] / rate:.0f}x"
         )
 
     if args.sweep_scenes:
@@ -119,7 +123,8 @@ def main() -> None:
         elapsed = time.perf_counter() - start
         print(
             f"sweep of {args.sweep_scenes} scenes (8 surfaces, chunks of 8192): {elapsed:.1f} s, "
-            f"rg RMS {result.value('ECRULE-SCWIA-12', 8, 'rg'):.4f}, ok {result.ok_fraction('ECRULE-SCWIA-12', 8):.2%}; "
+            f"rg RMS {result.value('ECRULE-SCWIA-12', 8, 'rg'):.4f}, "
+            f"ok {result.ok_fraction('ECRULE-SCWIA-12', 8):.2%}; "
             f"peak resident memory {before:.0f} MB before, {_peak_mb():.0f} MB after"
         )
     print(f"peak resident memory: {_peak_mb():.0f} MB")

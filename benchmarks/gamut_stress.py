@@ -68,7 +68,8 @@ def main() -> None:
             elapsed = time.perf_counter() - start
             merged = jax.tree_util.tree_map(lambda *x: np.concatenate([np.atleast_1d(v) for v in x]), *parts)
             print(
-                f"{label} ({args.scenes} scenes x {args.surfaces} surfaces, {elapsed:.0f} s, {args.scenes / elapsed:.0f} scenes/s incl. compile):"
+                f"{label} ({args.scenes} scenes x {args.surfaces} surfaces, "
+                f"{elapsed:.0f} s, {args.scenes / elapsed:.0f} scenes/s incl. compile):"
             )
             for name, values in merged.items():
                 n = args.scenes
@@ -76,7 +77,8 @@ def main() -> None:
                 total_nan += nan
                 print(
                     f"  {label + '-' + name:<20} NaN {nan:>3}   relaxed {np.mean(values['relaxed'][:n]):6.1%}   "
-                    f"fell back {np.mean(values['fell_back'][:n]):6.2%}   reduction overflow {np.mean(values['inexact'][:n]):6.2%}   "
+                    f"fell back {np.mean(values['fell_back'][:n]):6.2%} "
+                    f"  reduction overflow {np.mean(values['inexact'][:n]):6.2%}   "
                     f"rg RMS {np.sqrt(np.mean(np.square(values['rg'][:n]))):.4f}"
                 )
     print("no NaN" if total_nan == 0 else f"FAILED: {total_nan} NaN estimates")

@@ -210,7 +210,8 @@ def test_ecrule_ica_scwia_match_quadrature_on_a_few_scenes(default_world, models
     out = run_all(models[("ECRULE", None)], scenes.rgb, scenes.mask)
     ica, scwia = _ecrule_errors(out, scenes, reference)
     print(
-        f"ECRULE 8 surfaces: {len(ica)} non-empty scenes; ICA median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}"
+        f"ECRULE 8 surfaces: {len(ica)} non-empty scenes; ICA "
+        f"median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}"
     )
     assert len(ica) >= 4
     assert np.median(ica) < 0.002
@@ -411,7 +412,8 @@ def test_crule_against_oracle_200_scenes(default_world, models, reference, n_sur
     ave, mv = _crule_errors(out, scenes, reference, extension)
     label = "ND-CRULE" if extension else "CRULE"
     print(
-        f"{label} {n_surfaces} surfaces: {len(ave)}/200 non-empty; AVE centroid error median {np.median(ave):.2e}; MV product shortfall median {np.median(mv):.2e}"
+        f"{label} {n_surfaces} surfaces: {len(ave)}/200 non-empty; AVE centroid "
+        f"error median {np.median(ave):.2e}; MV product shortfall median {np.median(mv):.2e}"
     )
     assert len(ave) >= 100
     assert np.median(ave) < 0.005
@@ -425,7 +427,8 @@ def test_ecrule_against_quadrature_200_scenes(default_world, models, reference, 
     out = _runner()(models[("ECRULE", None)], scenes.rgb, scenes.mask)
     ica, scwia = _ecrule_errors(out, scenes, reference)
     print(
-        f"ECRULE {n_surfaces} surfaces: {len(ica)}/200 non-empty; ICA (r,g) error median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}"
+        f"ECRULE {n_surfaces} surfaces: {len(ica)}/200 non-empty; ICA "
+        f"(r,g) error median {np.median(ica):.2e}; SCWIA-12 median {np.median(scwia):.2e}"
     )
     assert len(ica) >= 100
     assert np.median(ica) < 0.002

@@ -46,17 +46,29 @@ def _build(world, match, **options):
         raise ValueError("method: ICA is the illumination-constrained average; CRULE has none (use CRULE-AVE)")
     soft_options = {name: options.pop(name) for name in _SOFT_OPTIONS if name in options}
     model = fit(world, constraint=match["base"], extension=extension, **options)
-    if match["soft"]:
+    if match.groupdict().get("soft"):
         return SoftGamutMapping(model, selector, power, **soft_options)
     if soft_options:
         raise ValueError(f"options: {sorted(soft_options)} apply to the soft- variants only")
     return GamutMapping(model, selector, power)
 
 
+_LABEL = r"(?P<nd>ND-)?(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))"
+
 _register(
-    r"(?P<soft>soft-)?(?P<nd>ND-)?(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))",
+    _LABEL,
     "ND-ECRULE-SCWIA-12",
-    "3-D gamut mapping [soft-][ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) by direction integration (§4.5.3, ch. 6)",
+    "3-D gamut mapping [ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) by direction integration (§4.5.3, ch. 6)",
+    grammar="[ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N)",
+    input_kind="surfaces",
+)(_build)
+_register(
+    r"(?P<soft>soft-)" + _LABEL,
+    "soft-ECRULE-SCWIA-12",
+    "differentiable 3-D gamut mapping soft-[ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N) (options tau, kappa, beta, margin)",
+    grammar="soft-[ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N)",
+    input_kind="surfaces",
+    differentiable=True,
 )(_build)
 
 # The 2-D family (its labels register on import) after the 3-D ones, so the registry lists them in

@@ -246,4 +246,6 @@ register(
     r"CIP-(?P<selector>MV|AVE|HA|ICA)",
     "CIP-ICA",
     "Colour in Perspective, 2-D gamut mapping with the illumination constraint (§4.5.3)",
+    grammar="CIP-(MV|AVE|HA|ICA)",
+    input_kind="surfaces",
 )(lambda world, match, **options: fit(world, _SELECTOR_OF_LABEL[match["selector"]], **options))

@@ -24,10 +24,9 @@ from ccjax.estimators.gamut.engine import OUTSIDE, directions
 def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K 3"]) -> Float[Array, " G"]:
     # max_k x_g . vectors_k as unrolled multiply-adds and maxima on component-major rows: far
     # faster than (batched) length-3 matrix products on CPU.
-    best = None
-    for k in range(vectors.shape[0]):
-        dot = x[0] * vectors[k, 0] + x[1] * vectors[k, 1] + x[2] * vectors[k, 2]
-        best = dot if best is None else jnp.maximum(best, dot)
+    best = x[0] * vectors[0, 0] + x[1] * vectors[0, 1] + x[2] * vectors[0, 2]
+    for k in range(1, vectors.shape[0]):
+        best = jnp.maximum(best, x[0] * vectors[k, 0] + x[1] * vectors[k, 1] + x[2] * vectors[k, 2])
     return best
 
 

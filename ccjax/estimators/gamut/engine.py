@@ -157,8 +157,8 @@ def locate(violation: Violation, domain: Float[Array, "2 2"], options: GridOptio
 
     Each iteration evaluates a square grid over the current box (the first: ``domain``) and keeps
     the points at the first relaxation level reached so far, padded by one step (and kept inside
-    the domain when ``options.clip_to_domain``); when none of its own points is at that level it zooms to one step around its
-    best point. One compiled body serves every iteration.
+    the domain when ``options.clip_to_domain``); when none of its own points is at that level it
+    zooms to one step around its best point. One compiled body serves every iteration.
 
     Arguments:
         violation: ``rg (G, 2) -> (G,)`` the constraint set's violation (``OUTSIDE`` outside
