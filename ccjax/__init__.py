@@ -39,7 +39,7 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
     The model's input kind decides what ``x`` is: surface estimators take a surface list ``(P, 3)``
     or a batch ``(B, P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch
     ``(B, H, W, 3)``. Anything else raises a ``ValueError`` saying what to pass (images reach
-    surface estimators through the image pipeline, :mod:`ccjax.images`).
+    surface estimators through the image pipeline, :mod:`ccjax.preprocessing`).
 
     Arguments:
         method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ``"grey-edge-1-6-2"``, ...) or a

@@ -48,7 +48,7 @@ def _registered(label: str) -> bool:
 EXAMPLES = [entry.example for entry in registry.available()]
 THESIS_ROWS = sorted({label for table in thesis.TABLES.values() for label in table if _registered(label)})
 LABELS = sorted(set(EXAMPLES) | set(THESIS_ROWS) | set(_compare_defaults()))
-GAMUT_FAMILIES = ("ccjax.estimators.gamut", "ccjax.estimators.cip")
+GAMUT_FAMILIES = ("ccjax.estimators.gamut", "ccjax.estimators.gamut.cip")
 
 
 def _param(label: str):

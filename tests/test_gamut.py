@@ -20,7 +20,7 @@ from scipy.optimize import linprog
 from ccjax import metrics
 from ccjax.estimators import gamut, registry
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status, estimate_batch
-from ccjax.estimators.gamut import kernel, relaxation
+from ccjax.estimators.gamut import constraints_3d, engine, relaxation
 from ccjax.scenes import sample
 
 SELECTORS_E = ("MV", "AVE", "ICA", "SCWIA-12")
@@ -170,14 +170,14 @@ def test_ray_extent_matches_linear_programs(default_world, models, reference):
     model = models[("CRULE", None)]
     scenes = sample(jax.random.key(3), default_world, 1, 6)
     rgb, mask = scenes.rgb[0], scenes.mask[0]
-    obs, _, _ = kernel.observations(model, rgb, mask)
+    obs, _, _ = constraints_3d.observations(model, rgb, mask)
     A, b = reference[None]
     Ad, bd = oracle.scene_constraints(A, b, np.asarray(rgb, np.float64))
     white = reference["white"]
     rg = np.random.default_rng(1).uniform(0.15, 0.45, (40, 2))
-    u, v, _ = kernel.directions(jnp.asarray(rg, jnp.float32))
-    feasible = np.asarray(kernel.surface_violation(v, obs)) <= 0
-    extent = 1.0 / np.asarray(kernel.inverse_extent(v, obs), np.float64)
+    u, v, _ = engine.directions(jnp.asarray(rg, jnp.float32))
+    feasible = np.asarray(constraints_3d.surface_violation(v, obs)) <= 0
+    extent = 1.0 / np.asarray(constraints_3d.inverse_extent(v, obs), np.float64)
     for i in range(len(rg)):
         m = white / np.asarray(u[i], np.float64)
         t_lp = linprog(-1.0, A_ub=(Ad @ m)[:, None], b_ub=bd, bounds=[(0, None)], method="highs").x[0]

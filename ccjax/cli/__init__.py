@@ -20,7 +20,6 @@ from ccjax.cli import (
     synthetic,
     training,
 )
-from ccjax.experiments.sweeps import weights_ready
 
 GROUPS = (synthetic, catalogue, photos, indexing, training, sharpen, calibrate)
 """The command groups, in ``ccjax --help`` order."""
@@ -30,7 +29,6 @@ COMMANDS = [add for group in GROUPS for add in group.COMMANDS]
 # Old paths of the single-module CLI, kept for one release.
 DEFAULT_COMPARE_METHODS = synthetic.DEFAULT_COMPARE_METHODS
 DEFAULT_INDEXING_METHODS = indexing.DEFAULT_INDEXING_METHODS
-_weights_ready = weights_ready
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -121,9 +121,17 @@ def run_calibrate(args) -> int:
     if args.subsets < 1:
         raise ValueError(f"--subsets: expected a positive number, got {args.subsets}")
     if args.synthetic:
-        camera = args.camera or (
-            "Sony DXC-930" if synthetic.has_external_lights(args.data_dir) else "Canon EOS 5D Mark II"
-        )
+        camera = args.camera
+        if camera is None:  # say which camera was chosen and why, never switch silently
+            if synthetic.has_external_lights(args.data_dir):
+                camera = "Sony DXC-930"
+                print("camera: Sony DXC-930 (the thesis camera; --camera chooses another)")
+            else:
+                camera = "Canon EOS 5D Mark II"
+                print(
+                    "camera: Canon EOS 5D Mark II (the thesis' Sony DXC-930 curves are external data and were "
+                    "not found: --data-dir or $CCJAX_DATA; --camera chooses another)"
+                )
         report = experiment.synthetic_experiment(
             camera,
             seed=args.seed,

@@ -88,7 +88,8 @@ def add_indexing(sub) -> None:
 def run_indexing(args) -> int:
     import jax
 
-    from ccjax import experiments, indexing
+    from ccjax import experiments
+    from ccjax.experiments import indexing
 
     methods = args.methods or [m for m in DEFAULT_INDEXING_METHODS if m == "ACTUAL" or experiments.is_registered(m)]
     start = time.perf_counter()

@@ -1,4 +1,4 @@
-"""``ccjax estimate``, ``ccjax correct`` and ``ccjax evaluate``: linear images (Barnard 1999 §4.4; ccjax.images)."""
+"""``ccjax estimate``, ``ccjax correct`` and ``ccjax evaluate``: linear images (Barnard 1999 §4.4)."""
 
 from __future__ import annotations
 
@@ -52,35 +52,31 @@ def read_options(args) -> dict:
 
 
 def fit_cached(label: str, world):
-    """The fitted estimator, memoised (``registry.fit_cached``; ``images.cached_fit`` before it)."""
+    """The fitted estimator, memoised (``registry.fit_cached``)."""
     from ccjax.estimators import registry
 
-    memoised = getattr(registry, "fit_cached", None)
-    if memoised is None:
-        from ccjax import images
-
-        memoised = images.cached_fit
-    return memoised(label, world)
+    return registry.fit_cached(label, world)
 
 
 def image_world(args):
-    from ccjax import images
+    from ccjax import _cache
+    from ccjax.experiments import evaluation
 
     check_camera_option(args)
-    images.enable_compilation_cache()
-    return images.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
+    _cache.enable_compilation_cache()
+    return evaluation.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
 def check_images(paths, args) -> None:
     """Read every input once before anything is computed or written (bad files -> no output)."""
-    from ccjax import images
-    from ccjax.images import Preprocessing
+    from ccjax import io
+    from ccjax.preprocessing import Preprocessing
 
     Preprocessing.parse(args.preprocessing)
     if not paths:
         raise ValueError("images: no image files given (folders are searched for .png, .tif, .tiff and raw files)")
     for path in paths:
-        images.read_image(path, **read_options(args))
+        io.read_image(path, **read_options(args))
 
 
 def add_estimate(sub) -> None:
@@ -107,13 +103,14 @@ def add_estimate(sub) -> None:
 
 
 def run_estimate(args) -> int:
-    from ccjax import images
+    from ccjax import io
+    from ccjax.experiments import evaluation
 
-    paths = images.list_images(args.images)
+    paths = io.list_images(args.images)
     check_images(paths, args)
     world = image_world(args)
     model = fit_cached(args.method, world)
-    results = images.run_images(
+    results = evaluation.run_images(
         paths,
         {args.method: [model]},
         preprocessing=args.preprocessing,
@@ -169,11 +166,11 @@ def run_correct(args) -> int:
     import numpy as np
     from tqdm.auto import tqdm
 
-    from ccjax import images
+    from ccjax import correction, io, preprocessing
 
     source, target = Path(args.input), Path(args.output)
     if source.is_dir():
-        paths = images.list_images([source])
+        paths = io.list_images([source])
         outputs = [
             target / f"{p.stem}{p.suffix.lower() if p.suffix.lower() in ('.png', '.tif', '.tiff') else '.tiff'}"
             for p in paths
@@ -197,7 +194,7 @@ def run_correct(args) -> int:
     world = image_world(args)
     model = fit_cached(args.method, world)
     canonical = world.canonical_white
-    matrix = images.preview_matrix_cached(world)
+    matrix = io.preview_matrix_cached(world)
     if source.is_dir():
         target.mkdir(parents=True, exist_ok=True)
     for path, output, preview in zip(
@@ -211,11 +208,11 @@ def run_correct(args) -> int:
         outputs,
         previews,
     ):
-        image = images.read_image(path, **read_options(args))
-        estimate = images.estimate_image(model, image, args.preprocessing, dark=args.dark)
-        corrected = np.asarray(images.correct(image.rgb, estimate.illuminant, canonical, sharpening))
-        images.write_linear(output, corrected)
-        images.write_preview(preview, corrected, matrix)
+        image = io.read_image(path, **read_options(args))
+        estimate = preprocessing.estimate_image(model, image, args.preprocessing, dark=args.dark)
+        corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening))
+        io.write_linear(output, corrected)
+        io.write_preview(preview, corrected, matrix)
         rgb = np.asarray(estimate.illuminant)
         print(f"{path}: illuminant {np.round(rgb, 5).tolist()} (ok: {bool(estimate.ok)}) -> {output}, {preview}")
     return 0
@@ -253,21 +250,22 @@ def add_evaluate(sub) -> None:
 def run_evaluate(args) -> int:
     import numpy as np
 
-    from ccjax import images
+    from ccjax import io
+    from ccjax.experiments import evaluation
 
     start = time.perf_counter()
-    pairs = images.match_ground_truth(images.read_ground_truth(args.ground_truth), args.directory)
+    pairs = io.match_ground_truth(io.read_ground_truth(args.ground_truth), args.directory)
     pairs.sort(key=lambda pair: str(pair[0]))
     paths, truth = [p for p, _ in pairs], np.stack([t for _, t in pairs])
     check_images(paths, args)
     world = image_world(args)
     fold_of = None
     if args.folds:
-        fold_of, worlds = images.fold_worlds(world, truth, args.folds)
+        fold_of, worlds = evaluation.fold_worlds(world, truth, args.folds)
         models = {label: [fit_cached(label, w) for w in worlds] for label in args.methods}
     else:
         models = {label: [fit_cached(label, world)] for label in args.methods}
-    results = images.run_images(
+    results = evaluation.run_images(
         paths,
         models,
         fold_of=fold_of,

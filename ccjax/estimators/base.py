@@ -200,9 +200,14 @@ def require_kind(model: AbstractEstimator, kind: str, what: str) -> None:
         return
     name = type(model).__name__
     if actual == "image":
-        advice = "run it on images: ccjax.estimate(model, image) or the image pipeline (ccjax.images)"
+        advice = (
+            "run it on images: ccjax.estimate(model, image) or the image pipeline (ccjax.preprocessing.estimate_image)"
+        )
     else:
-        advice = "images reach surface estimators through the image pipeline (ccjax.images), which makes surface lists"
+        advice = (
+            "images reach surface estimators through the image pipeline "
+            "(ccjax.preprocessing.estimate_image), which makes surface lists"
+        )
     raise ValueError(
         f"{what}: {name} is {_DESCRIBED[actual]} ({SHAPES[actual]}), but this needs "
         f"{_DESCRIBED[kind]} ({SHAPES[kind]}); {advice}"
@@ -317,7 +322,7 @@ def validate_input(model: AbstractEstimator, x, mask, *, name: str | None = None
         raise ValueError(
             f"{name}: {type(model).__name__} is a surface estimator and takes {SHAPES['surfaces']} "
             f"(or a batch (B, P, 3)); got shape {np.shape(x)}, a batch of images. Images reach surface "
-            "estimators through the image pipeline (ccjax.images)"
+            "estimators through the image pipeline (ccjax.preprocessing.estimate_image)"
         )
     if kind == "image":
         return validate_image(x, mask, name=name)

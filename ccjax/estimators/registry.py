@@ -58,7 +58,6 @@ _ENTRIES: list[Entry] = []
 FAMILIES = (
     "ccjax.estimators.simple",
     "ccjax.estimators.gamut",
-    "ccjax.estimators.cip",
     "ccjax.estimators.correlation",
     "ccjax.estimators.neural",
     "ccjax.estimators.spatial",

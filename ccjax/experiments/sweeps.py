@@ -194,8 +194,8 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
     if image:
         raise ValueError(
             f"methods: {label!r} is an image estimator (it needs (H, W, 3) images, not the surface lists "
-            "a sweep samples); run it on images with `ccjax evaluate` / ccjax.images.run_images or on "
-            "synthetic images with `ccjax indexing` / ccjax.indexing.run_indexing"
+            "a sweep samples); run it on images with `ccjax evaluate` / ccjax.experiments.evaluation.run_images or on "
+            "synthetic images with `ccjax indexing` / ccjax.experiments.indexing.run_indexing"
         )
 
 

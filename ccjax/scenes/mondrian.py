@@ -115,8 +115,8 @@ def render_mondrian(
         yy, xx = jnp.meshgrid(
             jnp.arange(height, dtype=image.dtype), jnp.arange(width, dtype=image.dtype), indexing="ij"
         )
-        one_hot = labels[..., None] == jnp.arange(n_patches)  # (H, W, P)
-        area = jnp.maximum(jnp.sum(one_hot, axis=(0, 1)), 1)
+        one_hot = (labels[..., None] == jnp.arange(n_patches)).astype(image.dtype)  # (H, W, P); counts exact
+        area = jnp.maximum(jnp.sum(one_hot, axis=(0, 1)), 1.0)
         centre_y = jnp.sum(one_hot * yy[..., None], axis=(0, 1)) / area
         centre_x = jnp.sum(one_hot * xx[..., None], axis=(0, 1)) / area
         spread = jnp.maximum(0.25 * jnp.sqrt(area.astype(image.dtype)), 1.0)

@@ -4,7 +4,7 @@
 (or its ND extension) as fixed-size facet arrays, the cone of the training illuminants
 (ECRULE's illumination constraint) and the cone of their map directions (its convex
 approximation), and the domain of illuminant directions the locating stage starts from. The per-scene work is
-:func:`~ccjax.estimators.gamut.kernel.evaluate` followed by a selector.
+:func:`~ccjax.estimators.gamut.constraints_3d.evaluate` followed by a selector.
 """
 
 from __future__ import annotations

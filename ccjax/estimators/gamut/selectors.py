@@ -48,7 +48,7 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
 
     Arguments:
         model: the fitted :class:`~ccjax.estimators.gamut.GamutModel`.
-        grid: from :func:`~ccjax.estimators.gamut.kernel.evaluate`.
+        grid: from :func:`~ccjax.estimators.gamut.constraints_3d.evaluate`.
         selector: ``"MV"``, ``"AVE"``, ``"ICA"`` (ECRULE) or ``"SCWIA"``.
         power: SCWIA's ``N``.
 
