@@ -1,5 +1,5 @@
 """3-D gamut mapping: CRULE / ECRULE (and ND) with MV, AVE, ICA and SCWIA-N (Barnard 1999 §2.3.4,
-§4.5.3, ch. 6), computed by illuminant-direction integration (DESIGN.md §4).
+§4.5.3, ch. 6), computed by illuminant-direction integration.
 
 Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``, and the
 differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``, ``margin``).
@@ -30,7 +30,7 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------------------------------
-# labels (Table 4.1, Table 6.1; grammar of spec ch08-12 §0)
+# labels (Table 4.1, Table 6.1; the thesis' label grammar)
 
 from ccjax.estimators.registry import register as _register
 

@@ -1,5 +1,5 @@
-"""AVE and ICA: the centroid of the feasible set in map space (Barnard 1999 §4.5.3; spec ch08-12
-§1.8), on the direction grid with volume weights ``T^3 / (rgb)^2`` and centroid weights
+"""AVE and ICA: the centroid of the feasible set in map space (Barnard 1999 §4.5.3),
+on the direction grid with volume weights ``T^3 / (rgb)^2`` and centroid weights
 ``(3/4) m(u) T^4 / (rgb)^2``; ``e = w_C / centroid``. ICA differs from AVE only by its mask (the
 exact illumination constraint; AVE uses its convex approximation), so one function serves both,
 hard (indicator mask) and soft (sigmoid mask)."""

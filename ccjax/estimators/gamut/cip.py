@@ -2,7 +2,7 @@
 illuminant-direction engine.
 
 CIP-MV, CIP-AVE (also ``CIP-HA``) and CIP-ICA of Barnard 1999 §4.5.3, Table 4.1 (Finlayson 1996;
-Barnard 1995; Finlayson & Hordley 1998); spec ch02-04 §6.4, ch08-12 §1.6, §1.8.
+Barnard 1995; Finlayson & Hordley 1998).
 
 A candidate illuminant direction is its chromaticity ``u = (r, g, 1-r-g)``; its 3-D map direction
 is ``m(u) = w_C / u`` and its 2-D map ``D(u) = (m1/m3, m2/m3) = (k1 b / r, k2 b / g)`` with
@@ -15,7 +15,7 @@ variables from ``(r, g)``:
 * **AVE** is the area centroid of the feasible set in 2-D map space; the Jacobian of
   ``(r, g) -> D`` is ``|dD/d(r,g)| = k1 k2 b / (r^2 g^2)``.
 * **ICA** averages the feasible 3-D map directions uniformly in solid angle (the cones of 3-D maps
-  that the 2-D constraints define, truncated by the unit ball; spec ch02-04 §10 item 16). The
+  that the 2-D constraints define, truncated by the unit ball, a choice the thesis leaves open). The
   solid angle of map directions is ``dOmega_m = w1 w2 w3 / (|m|^3 (r g b)^2) dr dg`` and the
   centroid direction is ``integral (m/|m|) dOmega_m / integral dOmega_m``. Option ``cone="plane"``
   truncates by ``d_r + d_g + d_b <= 1`` instead.
@@ -148,7 +148,7 @@ class CIP(AbstractSurfaceEstimator):
         mean = jnp.sum(weight * value, axis=1) / jnp.maximum(jnp.sum(weight), TINY)
         if self.selector == "AVE":
             mean = jnp.concatenate([mean, jnp.ones(1, mean.dtype)])
-        # Illuminant of a map: e = w_C / d (spec ch08-12 §0).
+        # Illuminant of a map: e = w_C / d (Barnard 1999 §4.5.3).
         return jnp.where(mean > TINY, white / jnp.maximum(mean, TINY), 0.0)
 
 
@@ -180,12 +180,12 @@ def fit(
 
     Arguments:
         world: supplies the reflectances under the canonical light (canonical gamut), the training
-            illuminants (illumination constraint, spec ch02-04 §10 item 6) and the canonical white.
+            illuminants (the illumination constraint) and the canonical white.
         selector: ``"MV"`` (max 2-D map area, Finlayson 1996), ``"AVE"`` (centroid, Barnard 1995)
             or ``"ICA"`` (3-D average over map directions, Finlayson & Hordley 1998).
         illumination: ``"exact"`` (the non-convex constraint) or ``"hull"`` (its convex hull in
             map space, Barnard 1995); default exact for MV and ICA, hull for AVE (Table 4.1).
-        cone: ICA only: ``"ball"`` (uniform in solid angle, spec ch02-04 §10 item 16) or
+        cone: ICA only: ``"ball"`` (uniform in solid angle) or
             ``"plane"`` (cones truncated by ``d_r + d_g + d_b = 1``).
         coarse, fine: grid points per axis of the locating and the integrating pass.
 
@@ -238,7 +238,7 @@ def fit(
 
 
 # ---------------------------------------------------------------------------------------------
-# labels (Table 4.1; "HA" = AVE, spec ch02-04 §10 item 17)
+# labels (Table 4.1; "HA", hull average, = AVE)
 
 _SELECTOR_OF_LABEL = {"MV": "MV", "AVE": "AVE", "HA": "AVE", "ICA": "ICA"}
 

@@ -1,7 +1,8 @@
 """The 3-D constraint set (CRULE, ECRULE and their ND gamut): ray extents ``T(u)`` and violations on
 the engine's grid of illuminant directions (Barnard 1999 §2.3.4, §4.5.3, §6.1).
 
-Parametrisation (DESIGN.md §4, spec ch08-12 §1.8): an illuminant direction is its chromaticity
+Parametrisation (Barnard 1999 §4.5.3, §6.2, as an integral over illuminant directions): an illuminant
+direction is its chromaticity
 ``u = (r, g, 1 - r - g)``; its diagonal maps are ``t * m(u)``, ``m(u) = w_C / u``. Writing
 ``q_j = p_j * w_C`` and ``v = 1 / u``, facet ``k`` constrains observation ``j`` along the ray by
 ``(n_k * q_j) . v``, so
@@ -10,7 +11,7 @@ Parametrisation (DESIGN.md §4, spec ch08-12 §1.8): an illuminant direction is 
 * surface feasibility is decided by the origin facets (``c_k = 0``) alone; their normalised
   violation ``V_S(u) = max over j, origin facets k of (n_k * q_j) . v / (|n_k| |q_j * v|)`` is the
   sine of how far the worst mapped colour lies outside the canonical chromaticity cone, and ``u``
-  is feasible at relaxation level ``eps`` iff ``V_S(u) <= eps`` (DESIGN.md §4);
+  is feasible at relaxation level ``eps`` iff ``V_S(u) <= eps`` (a relaxation instead of an empty set);
 * ECRULE's illumination constraint is ``V_I(u) = max_l n_l . u / |u| <= eps`` (cone of the
   training illuminants) and its convex approximation ``V_C(u) = max_l g_l . m / |m| <= eps``
   (cone of their map directions, used by ECRULE-AVE).
@@ -64,7 +65,7 @@ class Observations(eqx.Module):
 
 
 class Grid(eqx.Module):
-    """Per-direction quantities on the fine grid of one scene (spec ch08-12 §1.8).
+    """Per-direction quantities on the fine grid of one scene (Barnard 1999 §4.5.3).
 
     Attributes:
         rg: ``(G, 2)`` direction chromaticities.

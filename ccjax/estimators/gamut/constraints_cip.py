@@ -1,5 +1,5 @@
-"""The 2-D constraint set of Colour in Perspective (Barnard 1999 §4.5.3; spec ch02-04 §6.4, ch08-12
-§1.6, §1.8): per-direction violations of the perspective and illumination constraints, and the
+"""The 2-D constraint set of Colour in Perspective (Barnard 1999 §4.5.3):
+per-direction violations of the perspective and illumination constraints, and the
 feasible fraction of each grid cell that CIP's averages integrate.
 
 A perspective constraint "``D * p`` lies in the canonical polygon of ``(R/B, G/B)``" is a cone

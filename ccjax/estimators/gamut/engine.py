@@ -1,5 +1,5 @@
 """The illuminant-direction engine shared by every gamut-mapping family (Barnard 1999 §2.3.4,
-§4.5.3; spec ch08-12 §1.8).
+§4.5.3).
 
 An illuminant direction is its chromaticity ``u = (r, g, 1 - r - g)``, its diagonal maps are
 ``t * m(u)`` with ``m(u) = w_C / u``. A family is a *constraint set*: a function giving, for a

@@ -1,10 +1,10 @@
 """Fit-time geometry of gamut mapping (NumPy/SciPy, run once per world).
 
-* The canonical gamut (Barnard 1999 §2.3.4, §4.5.3; spec ch08-12 §1.7.1): the convex hull of the
+* The canonical gamut (Barnard 1999 §2.3.4, §4.5.3): the convex hull of the
   origin and the canonical RGBs of the reflectance database, in H-form ``n_k . x <= c_k``, with
   ``c_k = 0`` *exactly* for the facets through the origin (those alone decide which illuminant
   chromaticities are feasible; the others bound brightness).
-* The ND gamut (§6.1; spec ch05-07 §3.1): the hull of the canonical gamut and every training
+* The ND gamut (§6.1): the hull of the canonical gamut and every training
   illuminant's gamut mapped white-to-white into the canonical light.
 * Cones through the origin given by generator directions (the training illuminants for the
   illumination constraint of ECRULE, §2.3.4; their map directions ``w_C / e`` for the convex
@@ -41,7 +41,7 @@ class Facets:
 
 
 def gamut_facets(points: np.ndarray) -> Facets:
-    """H-form of ``conv({0} ∪ points)`` by Qhull (spec ch08-12 §1.7.1).
+    """H-form of ``conv({0} ∪ points)`` by Qhull (Barnard 1999 §4.5.3).
 
     Arguments:
         points: ``(S, 3)`` non-negative RGBs spanning 3-D.
@@ -108,7 +108,7 @@ def cone_planes(directions: np.ndarray) -> np.ndarray:
     """Unit outward face normals of the convex cone spanned by non-negative 3-vectors.
 
     The cone's cross-section is the convex hull of the directions' chromaticities (any central
-    projection gives the same cone, spec ch08-12 §1.7.3); each hull edge ``(a, b)`` gives the
+    projection gives the same cone); each hull edge ``(a, b)`` gives the
     face normal ``a x b`` oriented away from the cone's interior.
 
     Arguments:

@@ -1,5 +1,5 @@
 """MV: the feasible direction of maximum map volume ``T^3 / (r g b)`` (the product ``d_r d_g d_b``
-of the map at the ray's far end; Barnard 1999 §4.5.3, spec ch08-12 §1.8), ``e = u / T``.
+of the map at the ray's far end; Barnard 1999 §4.5.3), ``e = u / T``.
 
 Hard: the best grid direction refined below the grid step by the engine's pattern search. Soft:
 a softmax over directions with inverse temperature ``beta`` on the log-volume.

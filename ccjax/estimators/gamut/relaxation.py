@@ -1,5 +1,4 @@
-"""The relaxation ladder of gamut mapping and the status it gives an estimate (Barnard 1999 §4.3.2;
-spec ch08-12 §1.8).
+"""The relaxation ladder of gamut mapping and the status it gives an estimate (Barnard 1999 §4.3.2).
 
 A direction is feasible at level ``eps`` when its normalised violation (a sine) is ``<= eps``. The
 ladder is ``0``, then ``FIRST_LEVEL`` doubling for ``LEVELS`` steps; its last level (2.048) exceeds

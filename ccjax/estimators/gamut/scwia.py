@@ -1,5 +1,5 @@
 """SCWIA-N: the average of feasible chromaticities weighted by the N/3-th power of the map volume
-and the solid angle of each direction (Barnard 1999 §6.2; spec ch08-12 §1.8): weights
+and the solid angle of each direction (Barnard 1999 §6.2): weights
 ``(T^3 prod(w_C) / (rgb))^(N/3) dOmega``, ``dOmega = dr dg / |u|^3``, in the log domain. The
 brightness (not reported by the thesis) is the same average of ``1/T``. One function for the hard
 (indicator mask) and soft (sigmoid mask) forms."""

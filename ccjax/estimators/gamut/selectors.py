@@ -1,6 +1,6 @@
 """Solution selection from the fine direction grid: the masks, and dispatch to the selector modules
 (:mod:`~ccjax.estimators.gamut.mv`, :mod:`~ccjax.estimators.gamut.average`,
-:mod:`~ccjax.estimators.gamut.scwia`) (Barnard 1999 §4.5.3, §6.2; spec ch08-12 §1.8).
+:mod:`~ccjax.estimators.gamut.scwia`) (Barnard 1999 §4.5.3, §6.2).
 
 Every selector reads the same per-direction quantities (``T(u)`` and the violations) and
 differs only in the mask and the weights:
@@ -11,11 +11,11 @@ differs only in the mask and the weights:
   centroid weights ``(3/4) m(u) T^4 / (rgb)^2``; ``e = w_C / centroid``.
 * SCWIA-N: the average of feasible ``(r, g)`` with weights
   ``(T^3 prod(w_C) / (rgb))^(N/3) dOmega``, ``dOmega = dr dg / |u|^3``, in the log domain.
-  Brightness (not reported by the thesis) is the same average of ``1/T`` (spec ch08-12 §1.8 default).
+  Brightness (not reported by the thesis) is the same average of ``1/T`` (our default).
 
 Masks: CRULE uses surface feasibility ``V_S <= eps``; ECRULE's MV, ICA and SCWIA add the exact
 illumination constraint ``V_I <= eps``; ECRULE-AVE adds its convex approximation ``V_C <= eps``.
-``eps`` is the first relaxation level at which the mask is non-empty (DESIGN.md §4).
+``eps`` is the first relaxation level at which the mask is non-empty.
 """
 
 from __future__ import annotations

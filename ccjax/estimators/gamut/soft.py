@@ -1,4 +1,4 @@
-"""Differentiable gamut mapping (DESIGN.md §5; spec ch08-12 §9.2 "soft/differentiable versions").
+"""Differentiable gamut mapping (soft feasibility and soft selectors, so gradients reach the RGB and the gamut facets).
 
 The hard selectors have zero or undefined gradients: ``T(u)`` is a minimum over constraints and
 feasibility is an indicator. Here every non-smooth step gets a temperature:

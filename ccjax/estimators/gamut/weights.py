@@ -1,4 +1,4 @@
-"""Weights shared by the 3-D selectors (Barnard 1999 §4.5.3, §6.2; spec ch08-12 §1.8)."""
+"""Weights shared by the 3-D selectors (Barnard 1999 §4.5.3, §6.2)."""
 
 from __future__ import annotations
 
