@@ -27,6 +27,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from ccjax import scenes
+from ccjax._colour import rg_bin
 from ccjax.metrics import rg, rg_error
 
 BINS = 16
@@ -49,7 +50,7 @@ def rg_histogram(rgb: Float[Array, "... 3"], mask: Bool[Array, "..."], bins: int
     """
     rgb = rgb.reshape(-1, 3)
     valid = mask.reshape(-1) & (jnp.sum(rgb, axis=-1) > 0)
-    cells = jnp.clip(jnp.floor(rg(rgb) * bins).astype(jnp.int32), 0, bins - 1)
+    cells = rg_bin(rg(rgb), bins)
     counts = jnp.zeros(bins * bins, rgb.dtype).at[cells[:, 0] * bins + cells[:, 1]].add(valid.astype(rgb.dtype))
     return (counts / jnp.maximum(jnp.sum(counts), 1.0)).reshape(bins, bins)
 

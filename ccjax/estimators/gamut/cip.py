@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from ccjax._colour import rg_numpy
 from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate
 from ccjax.estimators.gamut import constraints_cip, geometry
 from ccjax.estimators.gamut.engine import GridOptions, directions, locate, pattern_search, square_grid
@@ -211,7 +212,7 @@ def fit(
         raise ValueError("world: needs at least 3 reflectances with B > 0 and 3 training illuminants")
     if illumination == "exact":
         illuminant_facets = geometry.cone_planes(train)
-        domain = _domain(train[:, :2] / train.sum(axis=1, keepdims=True))
+        domain = _domain(rg_numpy(train))
     else:
         illuminant_facets = geometry.cone_planes(white / train)
         domain = _domain(geometry.map_cone_chromaticities(white, train))

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from ccjax._colour import rg_numpy
+
 # Two triangulated facets of one plane are merged when their unit equations agree to this much.
 _COPLANAR = 1e-9
 
@@ -158,7 +160,7 @@ def map_cone_chromaticities(white: np.ndarray, whites: np.ndarray, samples: int 
     t = np.linspace(0.0, 1.0, samples)[:, None, None]
     boundary = ((1 - t) * extreme[None] + t * np.roll(extreme, -1, axis=0)[None]).reshape(-1, 3)
     illuminants = white / boundary
-    return illuminants[:, :2] / illuminants.sum(axis=1, keepdims=True)
+    return rg_numpy(illuminants)
 
 
 def simplex_grid(step: float, box: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)) -> np.ndarray:

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from ccjax._colour import rg_numpy
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
 from ccjax.estimators.gamut import geometry
 from ccjax.estimators.gamut.constraints_3d import evaluate
@@ -104,7 +105,7 @@ def fit(
     illuminant_planes = geometry.cone_planes(whites)
     map_planes = geometry.cone_planes(white / whites)
     if constraint == "ECRULE":
-        chroma = whites[:, :2] / whites.sum(axis=1, keepdims=True)
+        chroma = rg_numpy(whites)
         pr0, pr1, pg0, pg1 = geometry.preimage_box(map_planes, white)
         lo = np.minimum(chroma.min(axis=0), [pr0, pg0]) - _ECRULE_MARGIN
         hi = np.maximum(chroma.max(axis=0), [pr1, pg1]) + _ECRULE_MARGIN
