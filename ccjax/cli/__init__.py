@@ -44,18 +44,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``ccjax`` with ``argv`` (default: the process arguments); returns the exit code."""
+    """Run ``ccjax`` with ``argv`` (default: the process arguments).
+
+    Errors in arguments, files and folders (``ValueError``, ``OSError``) print one line and give 2;
+    Ctrl-C prints one line and gives 130 (128 + SIGINT), without a traceback.
+
+    Arguments:
+        argv: the arguments after ``ccjax``.
+
+    Returns:
+        The exit code.
+    """
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as error:
+    except (ValueError, OSError) as error:
+        if isinstance(error, BrokenPipeError):
+            # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;
+            # stdout goes to devnull so the interpreter's final flush does not raise again.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 1
         print(f"ccjax {args.command}: error: {error}", file=sys.stderr)
         return 2
-    except BrokenPipeError:
-        # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;
-        # stdout goes to devnull so the interpreter's final flush does not raise again.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
+    except KeyboardInterrupt:
+        print(f"ccjax {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 __all__ = ["COMMANDS", "DEFAULT_COMPARE_METHODS", "DEFAULT_INDEXING_METHODS", "GROUPS", "build_parser", "main"]

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from collections.abc import Iterable
+from pathlib import Path
 
 
 def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -> None:
@@ -59,13 +62,110 @@ def label_list(text: str) -> list[str]:
 
 
 def write(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` (``"-"``: standard output)."""
+    """Write ``text`` to ``path`` atomically (``"-"``: standard output).
+
+    Arguments:
+        path: the file, or ``"-"``.
+        text: the contents.
+
+    Returns:
+        None.
+    """
+    from ccjax.io.writing import write_file
+
     if path == "-":
         sys.stdout.write(text + ("\n" if not text.endswith("\n") else ""))
     else:
-        with open(path, "w") as f:
-            f.write(text)
+        write_file(path, text)
         print(f"wrote {path}", file=sys.stderr)
+
+
+def path_key(path: str | os.PathLike) -> str:
+    """A comparison key for ``path``: absolute, symbolic links resolved, case folded (two outputs
+    differing only in case would overwrite each other on case-insensitive file systems).
+
+    Arguments:
+        path: any path.
+
+    Returns:
+        The key.
+    """
+    return str(Path(path).resolve()).casefold()
+
+
+def check_output_file(path: str | os.PathLike, option: str, *, overwrite: bool = True) -> None:
+    """Refuse an output file that cannot be written, before any work is done.
+
+    Arguments:
+        path: the output file (``"-"``, standard output, is always accepted).
+        option: the argument's name for the message (``"--json"``, ``"OUT"``).
+        overwrite: whether an existing file may be replaced.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: ``path`` is a folder, exists while ``overwrite`` is false, or its folder is
+            missing or not writable.
+    """
+    if str(path) == "-":
+        return
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{option}: {path} is a folder; give a file name")
+    if path.exists() and not overwrite:
+        raise ValueError(f"{option}: {path} exists (use --overwrite to replace it)")
+    check_output_folder(path.parent, option, written=path)
+
+
+def check_output_folder(folder: str | os.PathLike, option: str, *, written: str | os.PathLike | None = None) -> None:
+    """Refuse an output folder that cannot be written (or created), before any work is done.
+
+    Arguments:
+        folder: the folder (may not exist yet if its nearest existing ancestor is writable).
+        option: the argument's name for the message.
+        written: the file to be written there, for the message (default: the folder).
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: ``folder`` or an ancestor is a file, or the nearest existing one is not writable.
+    """
+    folder = Path(folder).absolute()
+    written = folder if written is None else written
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{option}: {written} cannot be written: {existing} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{option}: {written} cannot be written: folder {existing} is not writable")
+
+
+def check_distinct(inputs: Iterable[str | os.PathLike], outputs: Iterable[tuple[str, str | os.PathLike]]) -> None:
+    """Refuse outputs that would replace an input or each other (case-insensitively).
+
+    Arguments:
+        inputs: the files read.
+        outputs: ``(option, path)`` pairs of the files written.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: naming both paths.
+    """
+    read = {path_key(path): Path(path) for path in inputs}
+    written: dict[str, tuple[str, Path]] = {}
+    for option, path in outputs:
+        key = path_key(path)
+        if key in read:
+            raise ValueError(f"{option}: {path} would overwrite the input {read[key]}")
+        if key in written:
+            other, first = written[key]
+            raise ValueError(f"{option}: {path} and {other} {first} are the same file")
+        written[key] = (option, Path(path))
 
 
 def write_outputs(args, report) -> None:

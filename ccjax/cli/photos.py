@@ -7,7 +7,18 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import check_camera_option, label_list, world_arguments, write
+from ccjax.cli.common import (
+    check_camera_option,
+    check_distinct,
+    check_output_file,
+    check_output_folder,
+    label_list,
+    path_key,
+    world_arguments,
+    write,
+)
+
+OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 
 
 def image_arguments(parser: argparse.ArgumentParser) -> None:
@@ -67,16 +78,55 @@ def image_world(args):
     return evaluation.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
+def check_labels(labels) -> None:
+    """Refuse unknown method labels before any image is read.
+
+    Arguments:
+        labels: estimator labels.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: naming the first unknown label and the known grammars.
+    """
+    from ccjax.estimators import registry
+
+    for label in labels:
+        registry.lookup(label)
+
+
 def check_images(paths, args) -> None:
-    """Read every input once before anything is computed or written (bad files -> no output)."""
+    """Read every input once before anything is computed or written (bad files -> no output).
+
+    Every file is tried, so one run reports all the bad ones.
+
+    Arguments:
+        paths: the image files.
+        args: the parsed arguments (preprocessing and read options).
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: no files, or one line per unreadable file.
+    """
     from ccjax import io
     from ccjax.preprocessing import Preprocessing
 
     Preprocessing.parse(args.preprocessing)
     if not paths:
         raise ValueError("images: no image files given (folders are searched for .png, .tif, .tiff and raw files)")
+    problems = []
     for path in paths:
-        io.read_image(path, **read_options(args))
+        try:
+            io.read_image(path, **read_options(args))
+        except (ValueError, OSError) as error:
+            problems.append(f"{error}" if str(path) in str(error) else f"{path}: {error}")
+    if len(problems) == 1:
+        raise ValueError(problems[0])
+    if problems:
+        raise ValueError(f"{len(problems)} of {len(paths)} images cannot be used:\n  " + "\n  ".join(problems))
 
 
 def add_estimate(sub) -> None:
@@ -106,6 +156,7 @@ def run_estimate(args) -> int:
     from ccjax import io
     from ccjax.experiments import evaluation
 
+    check_labels([args.method])
     paths = io.list_images(args.images)
     check_images(paths, args)
     world = image_world(args)
@@ -155,9 +206,95 @@ def add_correct(sub) -> None:
         help="3x3 sharpening transform T (text or .npy; rows = sharpened sensors) for a sharpened-diagonal map T^-1 "
         "diag(T w_C / T e) T",
     )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace existing output images and previews (they are refused otherwise; inputs are never replaced)",
+    )
     world_arguments(p)
     image_arguments(p)
     p.set_defaults(func=run_correct)
+
+
+def folder_outputs(paths, target):
+    """Output and preview paths in folder ``target`` for each input, no two alike (case-insensitively).
+
+    ``a.png`` gives ``a.png`` and ``a_preview.png``; a later input whose names are taken (``a.tif``,
+    ``A.PNG`` beside it) gets its original suffix in the stem: ``a_tif.tif``, ``a_tif_preview.png``,
+    then a number (``A_PNG-2.png``).
+
+    Arguments:
+        paths: the input files.
+        target: the output folder.
+
+    Returns:
+        ``(outputs, previews)``, lists of paths.
+    """
+    from pathlib import Path
+
+    target = Path(target)
+    used: set[str] = set()
+    outputs, previews = [], []
+    for path in paths:
+        suffix = path.suffix.lower() if path.suffix.lower() in OUTPUT_SUFFIXES else ".tiff"
+        tags = ["", f"_{path.suffix.lstrip('.')}"]
+        tags += [f"_{path.suffix.lstrip('.')}-{number}" for number in range(2, len(paths) + 3)]
+        for tag in tags:
+            output, preview = target / f"{path.stem}{tag}{suffix}", target / f"{path.stem}{tag}_preview.png"
+            if path_key(output) not in used and path_key(preview) not in used:
+                break
+        used.update((path_key(output), path_key(preview)))
+        outputs.append(output)
+        previews.append(preview)
+    return outputs, previews
+
+
+def correct_outputs(args):
+    """Validate ``ccjax correct``'s inputs and outputs before any work.
+
+    Arguments:
+        args: the parsed arguments (``input``, ``output``, ``preview``, ``overwrite``).
+
+    Returns:
+        ``(paths, outputs, previews)``: the input files and, for each, its output and preview.
+
+    Raises:
+        ValueError: an output would replace an input or another output, exists without
+            ``--overwrite``, is a folder, or cannot be written.
+    """
+    from pathlib import Path
+
+    from ccjax import io
+
+    source, target = Path(args.input), Path(args.output)
+    if source.is_dir():
+        if path_key(source) == path_key(target):
+            raise ValueError(f"output: {args.output} is the input folder {args.input}; its images would be replaced")
+        if target.exists() and not target.is_dir():
+            raise ValueError(f"output: {target} exists and is not a folder")
+        if args.preview:
+            raise ValueError("--preview: names one image's preview; with a folder the previews go beside the outputs")
+        paths = io.list_images([source])
+        outputs, previews = folder_outputs(paths, target)
+        check_output_folder(target, "output")
+    else:
+        if not source.exists():
+            raise FileNotFoundError(f"input: {source} does not exist")
+        paths, outputs = [source], [target]
+        previews = [Path(args.preview) if args.preview else target.with_name(f"{target.stem}_preview.png")]
+        if target.is_dir():
+            raise ValueError(f"output: {target} is a folder; give a .png, .tif or .tiff file name")
+        if target.suffix.lower() not in OUTPUT_SUFFIXES:
+            raise ValueError(f"output: {target} must end in .png, .tif or .tiff")
+        if not target.parent.is_dir():
+            raise ValueError(f"output: folder {target.parent} does not exist")
+        if previews[0].suffix.lower() != ".png":
+            raise ValueError(f"--preview: {previews[0]} must end in .png")
+    check_distinct(paths, [("output", output) for output in outputs] + [("--preview", preview) for preview in previews])
+    for output, preview in zip(outputs, previews, strict=True):
+        check_output_file(output, "output", overwrite=args.overwrite)
+        check_output_file(preview, "--preview", overwrite=args.overwrite)
+    return paths, outputs, previews
 
 
 def run_correct(args) -> int:
@@ -168,23 +305,9 @@ def run_correct(args) -> int:
 
     from ccjax import correction, io, preprocessing
 
-    source, target = Path(args.input), Path(args.output)
-    if source.is_dir():
-        paths = io.list_images([source])
-        outputs = [
-            target / f"{p.stem}{p.suffix.lower() if p.suffix.lower() in ('.png', '.tif', '.tiff') else '.tiff'}"
-            for p in paths
-        ]
-        previews = [target / f"{p.stem}_preview.png" for p in paths]
-        if target.exists() and not target.is_dir():
-            raise ValueError(f"output: {target} exists and is not a folder")
-    else:
-        paths, outputs = [source], [target]
-        previews = [Path(args.preview) if args.preview else target.with_name(f"{target.stem}_preview.png")]
-        if target.suffix.lower() not in (".png", ".tif", ".tiff"):
-            raise ValueError(f"output: {target} must end in .png, .tif or .tiff")
-        if not target.parent.is_dir():
-            raise ValueError(f"output: folder {target.parent} does not exist")
+    check_labels([args.method])
+    paths, outputs, previews = correct_outputs(args)
+    target = Path(args.output)
     sharpening = None
     if args.sharpening:
         sharpening = np.load(args.sharpening) if args.sharpening.endswith(".npy") else np.loadtxt(args.sharpening)
@@ -195,7 +318,7 @@ def run_correct(args) -> int:
     model = fit_cached(args.method, world)
     canonical = world.canonical_white
     matrix = io.preview_matrix_cached(world)
-    if source.is_dir():
+    if Path(args.input).is_dir():
         target.mkdir(parents=True, exist_ok=True)
     for path, output, preview in zip(
         tqdm(
@@ -254,6 +377,10 @@ def run_evaluate(args) -> int:
     from ccjax.experiments import evaluation
 
     start = time.perf_counter()
+    check_labels(args.methods)
+    for option, path in (("--json", args.json), ("--csv", args.csv)):
+        if path:
+            check_output_file(path, option)
     pairs = io.match_ground_truth(io.read_ground_truth(args.ground_truth), args.directory)
     pairs.sort(key=lambda pair: str(pair[0]))
     paths, truth = [p for p, _ in pairs], np.stack([t for _, t in pairs])

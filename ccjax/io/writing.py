@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ccjax._cache import atomic_write
 from ccjax.io.ground_truth import write_ground_truth
 from ccjax.io.png import write_png
 
@@ -26,22 +28,47 @@ def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
     return np.round(np.clip(np.asarray(rgb, np.float64), 0.0, 1.0) * levels).astype(dtype)
 
 
+def write_file(path: str | os.PathLike, data: bytes | str) -> None:
+    """Write ``data`` to ``path`` atomically: through a temporary file in the same folder renamed into
+    place, so an interrupted write never leaves a partial file under ``path`` and an old file is only
+    replaced once the new one is complete.
+
+    Arguments:
+        path: the file (missing folders are created).
+        data: the contents; text is encoded as UTF-8.
+
+    Returns:
+        None.
+    """
+    atomic_write(Path(path), data.encode("utf-8") if isinstance(data, str) else bytes(data))
+
+
 def write_linear(path: str | os.PathLike, rgb: ArrayLike) -> None:
-    """Write a unit-scale linear image ``(H, W, 3)`` as 16-bit PNG or TIFF (by suffix); values clamp to [0, 1].
+    """Write a unit-scale linear image ``(H, W, 3)`` as 16-bit PNG or TIFF (by suffix), atomically
+    (:func:`write_file`); values clamp to [0, 1].
+
+    Arguments:
+        path: ``.png``, ``.tif`` or ``.tiff`` file.
+        rgb: ``(H, W, 3)`` unit-scale linear RGB.
+
+    Returns:
+        None.
 
     Raises:
         ValueError: the suffix is not ``.png``, ``.tif`` or ``.tiff``.
     """
     path = Path(path)
+    if path.suffix.lower() not in (".png", ".tif", ".tiff"):
+        raise ValueError(f"output: {path} must end in .png, .tif or .tiff")
     codes = quantise(rgb)
     if path.suffix.lower() == ".png":
         write_png(path, codes)
-    elif path.suffix.lower() in (".tif", ".tiff"):
+    else:
         import tifffile
 
-        tifffile.imwrite(path, codes, photometric="rgb")
-    else:
-        raise ValueError(f"output: {path} must end in .png, .tif or .tiff")
+        buffer = io.BytesIO()
+        tifffile.imwrite(buffer, codes, photometric="rgb")
+        write_file(path, buffer.getvalue())
 
 
 def write_dataset(

@@ -1,0 +1,323 @@
+"""Issue 17, items 1, 3 and 7: ``ccjax correct`` never replaces its inputs, outputs never collide,
+existing outputs need ``--overwrite``, every file is written atomically, and paths and labels are
+checked before any work with one-line errors (exit 2; Ctrl-C: 130)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from image_files import bad_files
+from small_world import small_world
+
+import ccjax.io
+from ccjax import cli, images, io
+from ccjax.cli import common, photos
+from ccjax.experiments import evaluation
+from ccjax.io import writing
+
+
+@pytest.fixture(scope="module")
+def world():
+    return small_world()
+
+
+@pytest.fixture
+def setup(tmp_path, monkeypatch, world):
+    """The small world for every command, a private cache, the identity preview matrix (fast)."""
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
+    for module in (images, evaluation):
+        monkeypatch.setattr(module, "cached_world", lambda *a, **k: world)
+    monkeypatch.setattr(ccjax.io, "preview_matrix_cached", lambda w: np.eye(3, dtype=np.float32))
+    return tmp_path
+
+
+def _image(path, colour=(0.5, 0.4, 0.3)):
+    rgb = np.broadcast_to(np.asarray(colour), (6, 6, 3)).copy()
+    rgb[::2, ::3] *= 0.5  # some texture
+    writing.write_linear(path, rgb)
+    return path
+
+
+def _snapshot(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def _no_reads(monkeypatch):
+    monkeypatch.setattr(ccjax.io, "read_image", lambda *a, **k: pytest.fail("an image was read before the check"))
+
+
+def _one_line_error(captured, *needles):
+    assert captured.out == "" and "Traceback" not in captured.err
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ccjax "), captured.err
+    for needle in needles:
+        assert str(needle) in lines[0], (needle, lines[0])
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 1: inputs are never replaced; outputs never collide; existing outputs need --overwrite
+
+
+def test_correct_in_place_is_refused_naming_both_paths(setup, monkeypatch, capsys):
+    source = _image(setup / "in.png")
+    before = source.read_bytes()
+    _no_reads(monkeypatch)
+    assert cli.main(["correct", str(source), str(source), "--method", "GW", "--no-progress"]) == 2
+    _one_line_error(capsys.readouterr(), "would overwrite the input", source)
+    assert source.read_bytes() == before and sorted(p.name for p in setup.iterdir()) == ["in.png"]
+
+
+@pytest.mark.parametrize("spelling", ["same", "dot", "trailing-slash"])
+def test_correct_folder_onto_itself_is_refused(setup, monkeypatch, capsys, spelling):
+    folder = setup / "d"
+    folder.mkdir()
+    _image(folder / "a.png")
+    _image(folder / "b.tif", (0.2, 0.3, 0.6))
+    before = _snapshot(folder)
+    target = {"same": str(folder), "dot": f"{folder}/.", "trailing-slash": str(folder) + "/"}[spelling]
+    _no_reads(monkeypatch)
+    assert cli.main(["correct", str(folder), target, "--method", "GW", "--no-progress"]) == 2
+    _one_line_error(capsys.readouterr(), "input folder", folder, target)
+    assert _snapshot(folder) == before
+
+
+@pytest.mark.parametrize("clash", ["input", "output"])
+def test_preview_equal_to_an_input_or_output_is_refused(setup, monkeypatch, capsys, clash):
+    source = _image(setup / "in.png")
+    before = source.read_bytes()
+    out = setup / "out.png"
+    preview = {"input": source, "output": out}[clash]
+    _no_reads(monkeypatch)
+    argv = ["correct", str(source), str(out), "--method", "GW", "--preview", str(preview), "--no-progress"]
+    assert cli.main(argv) == 2
+    _one_line_error(capsys.readouterr(), "--preview", preview)
+    assert source.read_bytes() == before and not out.exists()
+
+
+def test_folder_outputs_never_collide_case_insensitively(setup, capsys):
+    folder = setup / "d"
+    folder.mkdir()
+    _image(folder / "a.png", (0.5, 0.4, 0.3))
+    _image(folder / "a.tif", (0.2, 0.3, 0.6))
+    _image(folder / "A.PNG", (0.6, 0.6, 0.1))
+    out = setup / "out"
+    assert cli.main(["correct", str(folder), str(out), "--method", "GW", "--no-progress"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert len(names) == 6 and len({name.casefold() for name in names}) == 6, names
+    assert {"A.png", "A_preview.png"} <= set(names)  # inputs in sorted order: the first keeps the plain names
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 3
+    # Each input's own output: correcting it alone gives the same pixels.
+    for line in lines:
+        source, written = line.split(": ", 1)[0], line.rsplit("-> ", 1)[1].split(", ")
+        single = setup / "single" / f"x{os.path.splitext(written[0])[1]}"
+        single.parent.mkdir(exist_ok=True)
+        argv = ["correct", source, str(single), "--method", "GW", "--no-progress", "--overwrite"]
+        assert cli.main(argv) == 0
+        capsys.readouterr()
+        np.testing.assert_array_equal(io.read_image(written[0]).rgb, io.read_image(single).rgb)
+        np.testing.assert_array_equal(io.read_png(written[1]), io.read_png(single.with_name("x_preview.png")))
+
+
+def test_folder_outputs_helper_gives_distinct_names(tmp_path):
+    paths = [Path("d") / name for name in ("a.png", "a.tif", "A.PNG", "a.TIF", "a_tif.tif", "b.nef")]
+    outputs, previews = photos.folder_outputs(paths, tmp_path)
+    keys = [common.path_key(p) for p in outputs + previews]
+    assert len(set(keys)) == len(keys)
+    assert outputs[0].name == "a.png" and previews[0].name == "a_preview.png"
+    assert outputs[-1].name == "b.tiff"  # raw inputs are written as TIFF
+
+
+def test_existing_output_needs_overwrite(setup, monkeypatch, capsys):
+    source = _image(setup / "in.tif")
+    out, preview = setup / "out.tif", setup / "out_preview.png"
+    out.write_bytes(b"old output")
+    with monkeypatch.context() as patch:
+        _no_reads(patch)
+        assert cli.main(["correct", str(source), str(out), "--method", "GW", "--no-progress"]) == 2
+        _one_line_error(capsys.readouterr(), out, "--overwrite")
+    assert out.read_bytes() == b"old output" and not preview.exists()
+    out.unlink()
+    preview.write_bytes(b"old preview")
+    with monkeypatch.context() as patch:
+        _no_reads(patch)
+        assert cli.main(["correct", str(source), str(out), "--method", "GW", "--no-progress"]) == 2
+        _one_line_error(capsys.readouterr(), preview, "--overwrite")
+    assert preview.read_bytes() == b"old preview" and not out.exists()
+    out.write_bytes(b"old output")
+    assert cli.main(["correct", str(source), str(out), "--method", "GW", "--no-progress", "--overwrite"]) == 0
+    assert io.read_image(out).rgb.shape == (6, 6, 3) and io.read_png(preview).dtype == np.uint8
+
+
+def test_existing_output_in_a_folder_needs_overwrite(setup, monkeypatch, capsys):
+    folder, out = setup / "d", setup / "out"
+    folder.mkdir()
+    out.mkdir()
+    _image(folder / "a.png")
+    (out / "a_preview.png").write_bytes(b"old preview")
+    _no_reads(monkeypatch)
+    assert cli.main(["correct", str(folder), str(out), "--method", "GW", "--no-progress"]) == 2
+    _one_line_error(capsys.readouterr(), out / "a_preview.png")
+    assert _snapshot(out) == {"a_preview.png": b"old preview"}
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 3: every written file is atomic
+
+
+def _interrupt_replace(monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupted)
+
+
+@pytest.mark.parametrize("name", ["x.png", "x.tif", "x.tiff", "x_preview.png", "r.json"])
+def test_interrupted_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkeypatch, name):
+    path = tmp_path / name
+    path.write_bytes(b"old contents")
+    rgb = np.full((4, 5, 3), 0.25)
+    write = {
+        "x.png": lambda: writing.write_linear(path, rgb),
+        "x.tif": lambda: writing.write_linear(path, rgb),
+        "x.tiff": lambda: writing.write_linear(path, rgb),
+        "x_preview.png": lambda: io.write_preview(path, rgb),
+        "r.json": lambda: common.write(str(path), "{}"),
+    }[name]
+    with monkeypatch.context() as patch:
+        _interrupt_replace(patch)
+        with pytest.raises(KeyboardInterrupt):
+            write()
+    assert path.read_bytes() == b"old contents"
+    assert [p.name for p in tmp_path.iterdir()] == [name]  # no temporary left behind
+    write()
+    assert path.read_bytes() != b"old contents" and [p.name for p in tmp_path.iterdir()] == [name]
+
+
+def test_tiff_written_through_memory_reads_back_exactly(tmp_path):
+    rgb = np.random.default_rng(0).uniform(0.0, 1.0, (7, 9, 3))
+    writing.write_linear(tmp_path / "x.tif", rgb)
+    writing.write_linear(tmp_path / "x.png", rgb)
+    codes = writing.quantise(rgb)
+    for name in ("x.tif", "x.png"):
+        np.testing.assert_array_equal(np.round(io.read_image(tmp_path / name).rgb * 65535.0), codes)
+
+
+def test_interrupted_correct_exits_130_and_keeps_old_outputs(setup, monkeypatch, capsys):
+    source = _image(setup / "in.png")
+    out, preview = setup / "out.tif", setup / "out_preview.png"
+    out.write_bytes(b"old output")
+    preview.write_bytes(b"old preview")
+    _interrupt_replace(monkeypatch)
+    assert cli.main(["correct", str(source), str(out), "--method", "GW", "--no-progress", "--overwrite"]) == 130
+    captured = capsys.readouterr()
+    assert captured.err == "ccjax correct: interrupted\n"
+    assert out.read_bytes() == b"old output" and preview.read_bytes() == b"old preview"
+    assert sorted(p.name for p in setup.iterdir() if p.name != "cache") == ["in.png", "out.tif", "out_preview.png"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 7: checks before any work, one-line errors, every bad file reported, Ctrl-C
+
+
+@pytest.mark.parametrize("command", ["estimate", "correct", "evaluate"])
+def test_method_typo_is_reported_before_any_image_is_read(setup, monkeypatch, capsys, command):
+    gt = io.write_dataset(setup / "set", np.full((1, 4, 4, 3), 0.5), [[1.0, 1.0, 1.0]])
+    _no_reads(monkeypatch)
+    argv = {
+        "estimate": ["estimate", str(setup / "set"), "--method", "GWW"],
+        "correct": ["correct", str(setup / "set"), str(setup / "out"), "--method", "GWW"],
+        "evaluate": ["evaluate", str(setup / "set"), "--ground-truth", str(gt), "--methods", "GW,GWW"],
+    }[command]
+    assert cli.main(argv + ["--no-progress"]) == 2
+    _one_line_error(capsys.readouterr(), "'GWW'")
+    assert not (setup / "out").exists()
+
+
+def test_output_that_is_a_folder_is_refused(setup, monkeypatch, capsys):
+    source = _image(setup / "in.png")
+    (setup / "out.png").mkdir()
+    _no_reads(monkeypatch)
+    for target in (setup / "out.png", setup):
+        assert cli.main(["correct", str(source), str(target), "--method", "GW", "--no-progress"]) == 2
+        _one_line_error(capsys.readouterr(), target, "is a folder")
+
+
+@pytest.mark.parametrize("option", ["--json", "--csv"])
+@pytest.mark.parametrize("problem", ["folder", "under-a-file"])
+def test_evaluate_report_paths_are_checked_first(setup, monkeypatch, capsys, option, problem):
+    gt = io.write_dataset(setup / "set", np.full((1, 4, 4, 3), 0.5), [[1.0, 1.0, 1.0]])
+    (setup / "afile").write_text("x")
+    target = {"folder": setup, "under-a-file": setup / "afile" / "r.json"}
+    _no_reads(monkeypatch)
+    argv = ["evaluate", str(setup / "set"), "--ground-truth", str(gt), "--methods", "GW", option, str(target[problem])]
+    assert cli.main(argv + ["--no-progress"]) == 2
+    _one_line_error(capsys.readouterr(), option, target[problem])
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root writes to read-only folders")
+def test_read_only_folder_is_refused_before_work(setup, monkeypatch, capsys):
+    source = _image(setup / "in.png")
+    locked = setup / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        _no_reads(monkeypatch)
+        assert cli.main(["correct", str(source), str(locked / "o.png"), "--method", "GW", "--no-progress"]) == 2
+        _one_line_error(capsys.readouterr(), locked, "not writable")
+    finally:
+        locked.chmod(0o700)
+
+
+def test_os_errors_during_work_are_one_line(setup, monkeypatch, capsys):
+    source = _image(setup / "in.png")
+
+    def refused(path, data):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    monkeypatch.setattr(writing, "write_file", refused)
+    assert cli.main(["correct", str(source), str(setup / "o.tif"), "--method", "GW", "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err and captured.err.count("\n") == 1
+    assert "Permission denied" in captured.err and "o.tif" in captured.err
+
+
+def test_every_bad_file_in_a_folder_is_reported(setup, capsys):
+    folder = setup / "d"
+    folder.mkdir()
+    _image(folder / "a.png")
+    bad = [(message, Path(str(path))) for message, path in bad_files(setup)[:2]]
+    for _, path in bad:
+        (folder / path.name).write_bytes(path.read_bytes())
+    out = setup / "out"
+    assert cli.main(["correct", str(folder), str(out), "--method", "GW", "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    assert "2 of 3 images cannot be used" in captured.err and "Traceback" not in captured.err
+    for message, path in bad:
+        assert message in captured.err and path.name in captured.err
+    assert captured.out == "" and not out.exists()
+
+
+def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(photos, "run_estimate", interrupted)
+    assert cli.main(["estimate", "x.png", "--method", "GW"]) == 130
+    assert capsys.readouterr().err == "ccjax estimate: interrupted\n"
+
+
+def test_ctrl_c_in_a_process_has_no_traceback(tmp_path):
+    script = (
+        "import sys, ccjax.cli, ccjax.cli.photos as photos\n"
+        "def interrupted(args):\n    raise KeyboardInterrupt\n"
+        "photos.run_estimate = interrupted\n"
+        "sys.exit(ccjax.cli.main(['estimate', 'x.png', '--method', 'GW']))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 130 and done.stderr == "ccjax estimate: interrupted\n" and done.stdout == ""
