@@ -53,10 +53,14 @@ def test_png_write_is_atomic_and_replaces(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["a.png"]  # no temporary file left behind
 
 
-def test_png_alpha_is_dropped(tmp_path):
+def test_png_alpha_is_a_mask(tmp_path):
     pixels = np.random.default_rng(9).integers(0, 60000, (3, 4, 4)).astype(np.uint16)
+    pixels[..., 3] = 65535
+    pixels[0, 0, 3] = 0  # one hidden pixel: its RGB is still read, but it is not usable
     (tmp_path / "a.png").write_bytes(reference_png(pixels, [4]))
-    np.testing.assert_allclose(io.read_image(tmp_path / "a.png").rgb, pixels[..., :3] / 65535.0, rtol=1e-6)
+    image = io.read_image(tmp_path / "a.png")
+    np.testing.assert_allclose(image.rgb, pixels[..., :3] / 65535.0, rtol=1e-6)
+    assert image.clipped[0, 0] and image.clipped.sum() == 1
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,86 +1,161 @@
 """Ground-truth files: CSV with the header ``image,r,g,b``.
 
 ``image`` is the file name relative to the image folder (its stem also matches), ``r,g,b`` the
-camera RGB of the light (any scale; only its direction is used).
+camera RGB of the light (any scale; only its direction is used). Further header columns are
+ignored; a row with more fields than the header, a name given twice, two names that resolve to one
+file (``im0`` and ``im0.png``), and absolute or ``..`` names are errors. A UTF-8 byte-order mark
+(as spreadsheet programs write) is accepted.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import os
 from collections.abc import Iterable
-from pathlib import Path
+from pathlib import Path, PurePath
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ccjax._cache import atomic_write
 from ccjax.io.reading import list_images
+
+
+def _check_name(path: Path, line: int, name: str) -> None:
+    """Refuse an empty image name, an absolute one, or one that climbs out of the folder."""
+    if not name:
+        raise ValueError(f"ground truth: {path} line {line}: the image name is empty")
+    pure = PurePath(name)
+    if pure.is_absolute() or name.startswith(("/", "\\")) or ".." in pure.parts:
+        raise ValueError(
+            f"ground truth: {path} line {line}: image {name!r} must be a name relative to the image folder "
+            "(no absolute path, no '..')"
+        )
 
 
 def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read a ground-truth CSV with header ``image,r,g,b`` (camera RGB of the light, any scale).
 
+    Arguments:
+        path: the CSV file (UTF-8, with or without a byte-order mark).
+
     Returns:
-        ``{image name: (3,) float64}``.
+        ``{image name: (3,) float64}`` in file order.
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: wrong header, a row that is not finite, non-negative and non-zero, or no rows.
+        ValueError: wrong header; a row with more fields than the header; a row that is not finite,
+            non-negative and non-zero; an empty, absolute or ``..`` image name; the same image on
+            two rows (both lines are named); or no rows.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"ground truth: no such file: {path}")
     truth: dict[str, np.ndarray] = {}
-    with open(path, newline="") as handle:
+    lines: dict[str, int] = {}
+    with open(path, newline="", encoding="utf-8-sig") as handle:
         reader = csv.DictReader(handle)
-        if reader.fieldnames is None or [f.strip().lower() for f in reader.fieldnames[:4]] != ["image", "r", "g", "b"]:
-            raise ValueError(f"ground truth: {path} must have the header image,r,g,b (got {reader.fieldnames})")
-        for line, row in enumerate(reader, start=2):
-            row = {k.strip().lower(): v for k, v in row.items() if k is not None}
-            try:
-                rgb = np.array([float(row["r"]), float(row["g"]), float(row["b"])])
-            except (TypeError, ValueError):
-                raise ValueError(f"ground truth: {path} line {line}: r,g,b must be numbers") from None
-            if not np.all(np.isfinite(rgb)) or np.any(rgb < 0) or rgb.sum() <= 0:
-                raise ValueError(f"ground truth: {path} line {line}: r,g,b must be finite, non-negative, not all zero")
-            truth[row["image"].strip()] = rgb
+        try:
+            fieldnames = reader.fieldnames
+        except UnicodeDecodeError as error:
+            raise ValueError(f"ground truth: {path} is not UTF-8 text ({error.reason})") from None
+        if fieldnames is None or [f.strip().lower() for f in fieldnames[:4]] != ["image", "r", "g", "b"]:
+            raise ValueError(f"ground truth: {path} must have the header image,r,g,b (got {fieldnames})")
+        try:
+            for row in reader:
+                line = reader.line_num
+                if None in row:
+                    raise ValueError(
+                        f"ground truth: {path} line {line}: {len(fieldnames) + len(row[None])} fields, "
+                        f"the header has {len(fieldnames)}"
+                    )
+                row = {k.strip().lower(): v for k, v in row.items()}
+                try:
+                    rgb = np.array([float(row["r"]), float(row["g"]), float(row["b"])])
+                except (TypeError, ValueError):
+                    raise ValueError(f"ground truth: {path} line {line}: r,g,b must be numbers") from None
+                if not np.all(np.isfinite(rgb)) or np.any(rgb < 0) or rgb.sum() <= 0:
+                    raise ValueError(
+                        f"ground truth: {path} line {line}: r,g,b must be finite, non-negative, not all zero"
+                    )
+                name = row["image"].strip()
+                _check_name(path, line, name)
+                if name in truth:
+                    raise ValueError(f"ground truth: {path} lines {lines[name]} and {line} both give image {name!r}")
+                truth[name], lines[name] = rgb, line
+        except UnicodeDecodeError as error:
+            raise ValueError(f"ground truth: {path} is not UTF-8 text ({error.reason})") from None
     if not truth:
         raise ValueError(f"ground truth: {path} has no rows")
     return truth
 
 
 def write_ground_truth(path: str | os.PathLike, names: Iterable[str], illuminants: ArrayLike) -> None:
-    """Write ``image,r,g,b`` rows (see :func:`read_ground_truth`), 9 significant digits."""
-    with open(path, "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["image", "r", "g", "b"])
-        for name, rgb in zip(names, np.asarray(illuminants, np.float64)):
-            writer.writerow([name, *(f"{v:.9g}" for v in rgb)])
+    """Write ``image,r,g,b`` rows (see :func:`read_ground_truth`), 9 significant digits, atomically.
+
+    Arguments:
+        path: the CSV file (written through a temporary file in the same folder).
+        names: image names relative to the image folder.
+        illuminants: ``(N, 3)`` camera RGB of each image's light.
+    """
+    text = io.StringIO(newline="")
+    writer = csv.writer(text)
+    writer.writerow(["image", "r", "g", "b"])
+    for name, rgb in zip(names, np.asarray(illuminants, np.float64)):
+        writer.writerow([name, *(f"{v:.9g}" for v in rgb)])
+    atomic_write(Path(path), text.getvalue().encode("utf-8"))
 
 
 def match_ground_truth(truth: dict[str, np.ndarray], directory: str | os.PathLike) -> list[tuple[Path, np.ndarray]]:
     """Pair each ground-truth row with its file in ``directory`` (by relative name, then by stem).
+
+    Arguments:
+        truth: ``{image name: (3,) light}`` (:func:`read_ground_truth`).
+        directory: the image folder.
 
     Returns:
         ``[(file, (3,) light), ...]`` in the order of ``truth``.
 
     Raises:
         FileNotFoundError: no such folder.
-        ValueError: rows whose image is not in the folder.
+        ValueError: rows whose image is not in the folder; a name outside the folder; a stem that
+            matches several files (``a.png`` and ``a.tif``); two rows that resolve to the same file
+            (``im0`` and ``im0.png``; both rows are named).
     """
     directory = Path(directory)
     if not directory.is_dir():
         raise FileNotFoundError(f"images: no such folder: {directory}")
-    by_stem = {p.stem: p for p in list_images([directory])}
+    root = directory.resolve()
+    by_stem: dict[str, list[Path]] = {}
+    for file in list_images([directory]):
+        by_stem.setdefault(file.stem, []).append(file)
     pairs, missing = [], []
+    claimed: dict[Path, str] = {}
     for name, rgb in truth.items():
         candidate = directory / name
+        if not candidate.resolve().is_relative_to(root):
+            raise ValueError(f"ground truth: row {name!r} points outside the image folder {directory}")
         if candidate.is_file():
-            pairs.append((candidate, rgb))
-        elif Path(name).stem in by_stem:
-            pairs.append((by_stem[Path(name).stem], rgb))
+            file = candidate
+        elif PurePath(name).stem in by_stem:
+            files = by_stem[PurePath(name).stem]
+            if len(files) > 1:
+                raise ValueError(
+                    f"ground truth: row {name!r} matches {len(files)} files in {directory} "
+                    f"({', '.join(f.name for f in files)}); give the file name with its suffix"
+                )
+            file = files[0]
         else:
             missing.append(name)
+            continue
+        key = file.resolve()
+        if key in claimed:
+            raise ValueError(
+                f"ground truth: rows {claimed[key]!r} and {name!r} are the same image {file} (conflicting stems)"
+            )
+        claimed[key] = name
+        pairs.append((file, rgb))
     if missing:
         raise ValueError(f"ground truth: {len(missing)} image(s) not found in {directory}, e.g. {missing[:3]}")
     return pairs

@@ -7,6 +7,9 @@
 from __future__ import annotations
 
 import os
+import struct
+import zlib
+from dataclasses import dataclass
 from pathlib import Path
 
 import imagecodecs
@@ -17,6 +20,87 @@ from ccjax._cache import atomic_write
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 COMPRESSION_LEVEL = 6
 """zlib level of written files (libpng's default trade-off between size and speed)."""
+
+_CHANNELS = {0: 1, 2: 3, 3: 3, 4: 2, 6: 4}  # PNG colour type -> channels after decoding (3: palette)
+
+
+@dataclass(frozen=True)
+class PngHeader:
+    """What a PNG's IHDR chunk says (read without decoding pixels).
+
+    Attributes:
+        width, height: the size in pixels.
+        bit_depth: bits per sample (1, 2, 4, 8 or 16; palette files decode to 8-bit RGB).
+        channels: samples per pixel after decoding (1 grey, 2 grey + alpha, 3 RGB/palette, 4 RGBA).
+    """
+
+    width: int
+    height: int
+    bit_depth: int
+    channels: int
+
+
+def _chunks(blob: bytes):
+    """``(type, data)`` of each chunk after the signature, CRC-checked (ValueError naming the chunk)."""
+    offset = len(PNG_SIGNATURE)
+    while offset < len(blob):
+        if offset + 12 > len(blob):
+            raise ValueError(f"truncated PNG (a chunk header at byte {offset} is cut off)")
+        (length,) = struct.unpack(">I", blob[offset : offset + 4])
+        end = offset + 12 + length
+        if end > len(blob):
+            raise ValueError(f"truncated PNG (chunk at byte {offset} needs {length} bytes)")
+        kind = blob[offset + 4 : offset + 8]
+        data = blob[offset + 8 : end - 4]
+        (stored,) = struct.unpack(">I", blob[end - 4 : end])
+        if zlib.crc32(data, zlib.crc32(kind)) != stored:
+            name = kind.decode("latin-1", "replace")
+            raise ValueError(f"corrupt PNG: CRC mismatch in chunk {name!r} at byte {offset}")
+        yield kind, data
+        if kind == b"IEND":
+            return
+        offset = end
+    raise ValueError("truncated PNG (no IEND chunk)")
+
+
+def _header(kind: bytes, data: bytes) -> PngHeader:
+    if kind != b"IHDR" or len(data) != 13:
+        raise ValueError("corrupt PNG: the first chunk is not a 13-byte IHDR")
+    width, height, depth, colour = struct.unpack(">IIBB", data[:10])
+    if colour not in _CHANNELS or width == 0 or height == 0:
+        raise ValueError(f"corrupt PNG: IHDR gives size {width}x{height}, colour type {colour}")
+    return PngHeader(width=width, height=height, bit_depth=8 if colour == 3 else depth, channels=_CHANNELS[colour])
+
+
+def png_header(path: str | os.PathLike) -> PngHeader:
+    """The size, bit depth and channels of a PNG from its IHDR chunk (CRC-checked), without
+    reading the rest of the file.
+
+    Arguments:
+        path: the file.
+
+    Returns:
+        A :class:`PngHeader`.
+
+    Raises:
+        ValueError: not a PNG file, or a truncated or corrupt header.
+    """
+    with open(path, "rb") as handle:
+        blob = handle.read(len(PNG_SIGNATURE) + 25)
+    if not blob.startswith(PNG_SIGNATURE):
+        raise ValueError("not a PNG file (bad signature)")
+    if len(blob) < len(PNG_SIGNATURE) + 25:
+        raise ValueError("truncated PNG (the header is cut off)")
+    (length,) = struct.unpack(">I", blob[8:12])
+    kind, data = blob[12:16], blob[16 : 16 + min(length, 13)]
+    (stored,) = struct.unpack(">I", blob[29:33])
+    if length != 13 or zlib.crc32(data, zlib.crc32(kind)) != stored:
+        raise ValueError(
+            "corrupt PNG: CRC mismatch in chunk 'IHDR' at byte 8"
+            if length == 13
+            else "corrupt PNG: the first chunk is not a 13-byte IHDR"
+        )
+    return _header(kind, data)
 
 
 def read_png(path: str | os.PathLike) -> np.ndarray:
@@ -29,11 +113,17 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
         ``uint8`` or ``uint16`` pixels, ``(H, W)`` for grey, else ``(H, W, C)``.
 
     Raises:
-        ValueError: not a PNG file, or truncated or corrupt data (the decoder's message).
+        ValueError: not a PNG file, a chunk whose CRC does not match (every chunk is checked,
+            ancillary ones too, which libpng would only warn about), or truncated or corrupt data
+            (the decoder's message).
     """
     blob = Path(path).read_bytes()
     if not blob.startswith(PNG_SIGNATURE):
         raise ValueError("not a PNG file (bad signature)")
+    chunks = _chunks(blob)
+    _header(*next(chunks))
+    for _ in chunks:
+        pass
     try:
         return np.asarray(imagecodecs.png_decode(blob))
     except imagecodecs.PngError as error:

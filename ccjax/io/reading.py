@@ -4,6 +4,13 @@
 full well is 1.0) and marks clipped pixels (any channel at or above the saturation level; the
 thesis discards them, §2.7). 8-bit files are refused unless ``assume_linear``: they are almost
 always gamma-encoded, and estimating on gamma-encoded data is silently wrong.
+
+Alpha (RGBA PNG, RGB + extra-sample TIFF) is a mask: a pixel whose alpha is below full opacity
+(the format's maximum: 255, 65535, or 1.0 for float) is *transparent* and is marked in ``clipped``
+too, so no estimator or preprocessing step uses it (partly transparent pixels are excluded as well:
+their colour is blended, or premultiplied in associated-alpha TIFFs). :func:`probe_image` checks a
+file's format, bit depth, channels and size from its header alone, so a command can validate
+every input before any work and then decode each file once.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ccjax.io.png import read_png
+from ccjax.io.png import png_header, read_png
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *RAW_SUFFIXES)
@@ -29,15 +36,19 @@ class LinearImage:
 
     Attributes:
         rgb: ``(H, W, 3)`` float32, black level subtracted, divided by ``saturation - black``.
-        clipped: ``(H, W)`` True where any channel reached the saturation level.
+        clipped: ``(H, W)`` True where a pixel is not usable: any channel reached the saturation
+            level, or the pixel is transparent (every consumer masks with ``~clipped``).
         path: where it came from.
         bit_depth: 8 or 16 for integer files, 32/64 for float TIFF, 16 for raw.
+        transparent: ``(H, W)`` True where the file's alpha is below full opacity (these pixels
+            are also in ``clipped``); None for files without alpha.
     """
 
     rgb: np.ndarray
     clipped: np.ndarray
     path: str = ""
     bit_depth: int = 16
+    transparent: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -70,6 +81,21 @@ def _read_raw(path: Path) -> np.ndarray:
         )
 
 
+_UNSUPPORTED_PHOTOMETRIC = ("SEPARATED", "CIELAB", "ICCLAB", "ITULAB", "LOGL", "LOGLUV")
+
+
+def _tiff_layout(tif) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape (channels last) and sample type of a TIFF's first series, from its tags alone."""
+    series = tif.series[0]
+    photometric = getattr(tif.pages[0].photometric, "name", str(tif.pages[0].photometric))
+    if photometric in _UNSUPPORTED_PHOTOMETRIC:
+        raise ValueError(f"TIFF colour space {photometric} is not supported; expected RGB")
+    shape = tuple(series.shape)
+    if len(shape) == 3 and shape[0] in (3, 4) and shape[2] not in (3, 4):
+        shape = (*shape[1:], shape[0])  # planar (separate) configuration
+    return shape, np.dtype(series.dtype)
+
+
 def _read_pixels(path: Path) -> np.ndarray:
     suffix = path.suffix.lower()
     if suffix == ".png":
@@ -77,11 +103,103 @@ def _read_pixels(path: Path) -> np.ndarray:
     if suffix in (".tif", ".tiff"):
         import tifffile
 
-        pixels = tifffile.imread(path)
+        with tifffile.TiffFile(path) as tif:
+            _tiff_layout(tif)
+            pixels = tif.asarray()  # what tifffile.imread gives (compressed files through imagecodecs)
         if pixels.ndim == 3 and pixels.shape[0] in (3, 4) and pixels.shape[2] not in (3, 4):
             pixels = np.moveaxis(pixels, 0, -1)  # planar (separate) configuration
         return pixels
     raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
+
+
+def _check_layout(path: Path, shape: tuple[int, ...], dtype: np.dtype, assume_linear: bool) -> int:
+    """Refuse what :func:`read_image` refuses before looking at pixel values; return the bit depth."""
+    if len(shape) == 2 or (len(shape) == 3 and shape[2] < 3):
+        raise ValueError(f"image: {path} is a greyscale image; colour constancy needs RGB")
+    if len(shape) != 3 or shape[2] not in (3, 4):
+        raise ValueError(f"image: {path} has shape {shape}; expected (height, width, 3)")
+    if shape[0] * shape[1] == 0:
+        raise ValueError(f"image: {path} has no pixels (size {shape[0]}x{shape[1]})")
+    if dtype == np.uint8 and not assume_linear:
+        raise ValueError(
+            f"image: {path} is 8-bit; 8-bit files are almost always gamma-encoded (sRGB), not linear "
+            "camera data. Use a 16-bit linear file (or raw), or pass --assume-linear if it really is linear"
+        )
+    if not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
+        raise ValueError(f"image: {path} has unsupported sample type {dtype}")
+    return 8 * dtype.itemsize
+
+
+@dataclass(frozen=True)
+class ImageInfo:
+    """What :func:`probe_image` learns from a file's header.
+
+    Attributes:
+        path: the file.
+        height, width: the size in pixels (raw files: half the sensor's visible size, as
+            :func:`read_image` develops them one pixel per Bayer quad).
+        channels: 3 (RGB) or 4 (RGB + alpha).
+        bit_depth: bits per sample as :func:`read_image` will see them.
+    """
+
+    path: str
+    height: int
+    width: int
+    channels: int
+    bit_depth: int
+
+
+def probe_image(path: str | os.PathLike, *, assume_linear: bool = False) -> ImageInfo:
+    """Check that :func:`read_image` can read a file, from its header alone (no pixel decoding).
+
+    Checks existence, file type, PNG signature and header CRC, TIFF tags (colour space, sample
+    type, layout), channels, size and bit depth; the pixel-value checks (NaN, every pixel
+    clipped, corrupt compressed data) need the pixels and remain with :func:`read_image`.
+
+    Arguments:
+        path: the file.
+        assume_linear: accept 8-bit files (as :func:`read_image`).
+
+    Returns:
+        An :class:`ImageInfo`.
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ValueError: what :func:`read_image` would refuse from the header; the message names the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"image: no such file: {path}")
+    suffix = path.suffix.lower()
+    shape: tuple[int, ...]
+    try:
+        if suffix == ".png":
+            header = png_header(path)
+            dtype = np.dtype(np.uint16 if header.bit_depth == 16 else np.uint8)
+            shape = (header.height, header.width) + ((header.channels,) if header.channels > 1 else ())
+        elif suffix in (".tif", ".tiff"):
+            import tifffile
+
+            with tifffile.TiffFile(path) as tif:
+                shape, dtype = _tiff_layout(tif)
+        elif suffix in RAW_SUFFIXES:
+            try:
+                import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
+            except ImportError:
+                raise ValueError(
+                    f"{path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')"
+                ) from None
+            with rawpy.imread(str(path)) as raw:
+                sizes = raw.sizes
+                shape, dtype = (sizes.height // 2, sizes.width // 2, 3), np.dtype(np.uint16)
+        else:
+            raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
+    except ValueError as error:
+        raise ValueError(f"image: cannot read {path}: {error}") from None
+    except Exception as error:  # a decoder's own exception types: report them the same way
+        raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
+    bit_depth = _check_layout(path, shape, dtype, assume_linear)
+    return ImageInfo(path=str(path), height=shape[0], width=shape[1], channels=shape[-1], bit_depth=bit_depth)
 
 
 def read_image(
@@ -125,25 +243,10 @@ def read_image(
         raise ValueError(f"image: cannot read {path}: {error}") from None
     except Exception as error:  # a decoder's own exception types: report them the same way
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
-    if pixels.ndim == 2 or (pixels.ndim == 3 and pixels.shape[2] < 3):
-        raise ValueError(f"image: {path} is a greyscale image; colour constancy needs RGB")
-    if pixels.ndim != 3 or pixels.shape[2] not in (3, 4):
-        raise ValueError(f"image: {path} has shape {pixels.shape}; expected (height, width, 3)")
-    pixels = pixels[..., :3]  # drop alpha
-    if pixels.size == 0:
-        raise ValueError(f"image: {path} has no pixels (size {pixels.shape[0]}x{pixels.shape[1]})")
-    if pixels.dtype == np.uint8 and not assume_linear:
-        raise ValueError(
-            f"image: {path} is 8-bit; 8-bit files are almost always gamma-encoded (sRGB), not linear "
-            "camera data. Use a 16-bit linear file (or raw), or pass --assume-linear if it really is linear"
-        )
-    if np.issubdtype(pixels.dtype, np.integer):
-        bit_depth = 8 * pixels.dtype.itemsize
-        full_scale = float(np.iinfo(pixels.dtype).max)
-    elif np.issubdtype(pixels.dtype, np.floating):
-        bit_depth, full_scale = 8 * pixels.dtype.itemsize, 1.0
-    else:
-        raise ValueError(f"image: {path} has unsupported sample type {pixels.dtype}")
+    bit_depth = _check_layout(path, pixels.shape, pixels.dtype, assume_linear)
+    full_scale = float(np.iinfo(pixels.dtype).max) if np.issubdtype(pixels.dtype, np.integer) else 1.0
+    transparent = pixels[..., 3] < pixels.dtype.type(full_scale) if pixels.shape[2] == 4 else None
+    pixels = pixels[..., :3]
     level = float(saturation if saturation is not None else default_saturation or full_scale)
     if not level > black_level:
         raise ValueError(f"saturation: {level} must be above the black level {black_level}")
@@ -152,12 +255,17 @@ def read_image(
         raise ValueError(f"image: {path} contains NaN or infinite values")
     clip_level = level * (_RAW_CLIP if default_saturation is not None and saturation is None else 1.0)
     clipped = np.any(values >= clip_level, axis=-1)
+    if transparent is not None:
+        if np.all(transparent):
+            raise ValueError(f"image: every pixel of {path} is transparent (alpha below full opacity)")
+        clipped |= transparent
     if np.all(clipped):
         raise ValueError(
-            f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g})"
+            f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g}"
+            + (", or transparent)" if transparent is not None else ")")
         )
     rgb = np.maximum(values - np.float32(black_level), 0.0) / np.float32(level - black_level)
-    return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth)
+    return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth, transparent=transparent)
 
 
 def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
