@@ -105,8 +105,71 @@ def test_bad_arguments(default_world):
         sample(jax.random.key(0), default_world, 0, 8)
     with pytest.raises(ValueError, match="clip"):
         sample(jax.random.key(0), default_world, 2, 8, clip=-1.0)
-    with pytest.raises(ValueError, match="specular"):
+    with pytest.raises(ValueError, match=r"Specular\.probability"):
         sample(jax.random.key(0), default_world, 2, 8, specular=Specular(probability=2.0))
+
+
+@pytest.mark.parametrize(
+    ("make", "field"),
+    [
+        (lambda: Specular(max_amount=float("nan")), "Specular.max_amount"),
+        (lambda: Specular(max_amount=float("inf")), "Specular.max_amount"),
+        (lambda: Specular(max_amount=-1.0), "Specular.max_amount"),
+        (lambda: Specular(probability=-0.1), "Specular.probability"),
+        (lambda: Specular(probability=1.5), "Specular.probability"),
+        (lambda: Specular(probability=float("nan")), "Specular.probability"),
+        (lambda: ShotNoise(b=float("nan")), "ShotNoise.b"),
+        (lambda: ShotNoise(b=-1e-6), "ShotNoise.b"),
+        (lambda: ShotNoise(a=-1.0), "ShotNoise.a"),
+        (lambda: ShotNoise(a=float("nan")), "ShotNoise.a"),
+    ],
+)
+def test_sampling_parameters_are_validated(make, field):
+    """NaN, infinite, negative or out-of-range options are refused naming the field (issue 17 #8),
+    instead of producing NaN RGB."""
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        make()
+
+
+def test_sampling_parameters_at_the_edges_are_accepted(default_world):
+    batch = sample(
+        jax.random.key(0),
+        default_world,
+        3,
+        4,
+        specular=Specular(probability=1.0, max_amount=0.0),
+        noise=ShotNoise(0.0, 0.0),
+    )
+    assert np.isfinite(np.asarray(batch.rgb)).all()
+
+
+def test_integer_like_counts_are_accepted(default_world):
+    key = jax.random.key(2)
+    plain = sample(key, default_world, 3, 4)
+    numpy_ints = sample(key, default_world, np.int32(3), np.int64(4))
+    np.testing.assert_array_equal(np.asarray(plain.rgb), np.asarray(numpy_ints.rgb))
+    assert numpy_ints.rgb.shape == (3, 4, 3)
+
+
+@pytest.mark.parametrize("bad", [4.0, 4.5, "4", True, None])
+def test_non_integer_counts_are_refused(default_world, bad):
+    """A clear ValueError naming the count (under the suite's beartype hooks a non-integer is
+    refused even earlier, by the ``SupportsIndex`` annotation of ``sample``)."""
+    with pytest.raises(ValueError, match="n_surfaces: expected an integer in \\[1, 9\\]"):
+        scenes.require_count(bad, "n_surfaces", 1, 9)
+    with pytest.raises((ValueError, TypeError), match=r"n_surfaces|n_scenes"):
+        sample(jax.random.key(0), default_world, 2, bad)
+
+
+def test_out_of_range_counts_name_the_argument(default_world):
+    with pytest.raises(ValueError, match=r"n_surfaces: expected an integer in \[1, \d+\], got 0"):
+        sample(jax.random.key(0), default_world, 2, np.int64(0))
+    with pytest.raises(ValueError, match="n_patches"):
+        scenes.sample_mondrians(jax.random.key(0), default_world, 1, height=8, width=8, n_patches=np.int64(10**6))
+    images = scenes.sample_mondrians(
+        jax.random.key(0), default_world, np.int64(1), height=np.int64(8), width=8, n_patches=4
+    )
+    assert images.image.shape[:3] == (1, 8, 8)
 
 
 def test_samples_are_drawn_by_draw_scene(default_world):

@@ -117,6 +117,62 @@ def test_degenerate_scenes_give_finite_fallback(models, run, default_world):
         np.testing.assert_allclose(np.asarray(est.illuminant) / np.sum(est.illuminant), [0.2, 0.5, 0.3], rtol=1e-5)
 
 
+def test_constants_report_degenerate_scenes(models, run, default_world):
+    """NOTHING and AVE-ILLUM keep their constant but say NO_DATA on scenes without a lit valid
+    surface (issue 17 #5), and ESTIMATED otherwise."""
+    from ccjax.estimators.base import Status
+
+    lit = np.random.default_rng(1).uniform(0.1, 1.0, (P, 3)).astype(np.float32)
+    cases = {
+        "all masked": (lit, np.zeros(P, bool), False),
+        "all zero": (np.zeros((P, 3), np.float32), np.ones(P, bool), False),
+        "lit surfaces masked, black ones valid": (lit * np.arange(P)[:, None].__ge__(4), np.arange(P) < 4, False),
+        "normal": (lit, np.ones(P, bool), True),
+    }
+    for label, constant in [
+        ("NOTHING", default_world.canonical_white),
+        ("AVE-ILLUM", average_illuminant(default_world)),
+    ]:
+        for name, (rgb, mask, ok) in cases.items():
+            est = run(models[label], rgb.astype(np.float32), mask)
+            assert bool(est.ok) is ok, (label, name)
+            assert int(est.status) == (Status.ESTIMATED if ok else Status.NO_DATA), (label, name)
+            np.testing.assert_array_equal(est.illuminant, np.asarray(constant))
+
+
+def test_shades_of_grey_large_p_is_stable(run, default_world):
+    """x^1000 overflows or underflows without per-channel scaling: every channel must stay positive
+    and tend to the per-channel maximum (RETINEX's chromaticity), for bright and dim scenes."""
+    rng = np.random.default_rng(5)
+    rgb = rng.uniform(0.01, 1.0, (P, 3)).astype(np.float32) * np.array([1.0, 0.5, 0.05], np.float32)
+    mask = np.ones(P, bool)
+    model = registry.fit("shades-of-grey-p1000", default_world)
+    for scale in [1.0, 1e6, 1e-12]:
+        est = run(model, (rgb * scale).astype(np.float32), mask)
+        assert bool(est.ok), scale
+        illuminant = np.asarray(est.illuminant, np.float64)
+        assert np.all(np.isfinite(illuminant)) and np.all(illuminant > 0), (scale, illuminant)
+        chromaticity = illuminant / illuminant.sum()
+        peak = rgb.max(axis=0).astype(np.float64)
+        np.testing.assert_allclose(chromaticity, peak / peak.sum(), atol=2e-3)
+
+
+def test_soft_retinex_is_scale_invariant_and_honest(run, default_world):
+    rng = np.random.default_rng(6)
+    rgb = rng.uniform(0.05, 1.0, (P, 3)).astype(np.float32)
+    mask = np.ones(P, bool)
+    model = registry.fit("soft-RETINEX-t0.01", default_world)
+    base = np.asarray(run(model, rgb, mask).illuminant, np.float64)
+    for scale in [1e6, 1e-12]:
+        est = run(model, (rgb * np.float32(scale)).astype(np.float32), mask)
+        assert bool(est.ok)
+        got = np.asarray(est.illuminant, np.float64)
+        np.testing.assert_allclose(got / got.sum(), base / base.sum(), rtol=1e-4)
+    zero = run(model, np.zeros((P, 3), np.float32), mask)
+    assert not bool(zero.ok)
+    np.testing.assert_allclose(zero.illuminant, np.asarray(average_illuminant(default_world)), rtol=1e-6)
+
+
 def test_gradients_match_finite_differences(default_world):
     with jax.enable_x64(True):
         rng = np.random.default_rng(3)

@@ -31,8 +31,10 @@ class Constant(AbstractSurfaceEstimator):
     illuminant: Float[Array, "3"]
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
-        # A constant needs no data: an empty scene is no reason to report a fallback.
-        return Estimate(illuminant=self.illuminant, ok=jnp.asarray(True))
+        # The answer ignores the scene, but a scene without one lit valid surface (all masked, all
+        # black) is degenerate: report it (Status.NO_DATA) as every other estimator does.
+        lit = jnp.any(mask & (jnp.max(rgb, axis=-1) > 0))
+        return Estimate(illuminant=self.illuminant, ok=lit)
 
 
 @typing.final
@@ -68,10 +70,15 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
         masked = jnp.where(mask[:, None], rgb, 0.0)
-        # Normalise by the brightest value first so rho^p neither overflows nor underflows.
-        peak = jnp.max(pairwise_reduce(masked, jnp.maximum))
-        usable = (count > 0) & (peak > TINY)
-        inverse_peak = 1.0 / jnp.where(usable, peak, 1.0)
+        # Normalise each channel by its own maximum first so rho^p neither overflows nor underflows
+        # (the normalised mean is then at least 1/P in every channel with a lit surface, even for
+        # p = 1000; one maximum over all channels let a dim channel's x^p underflow to 0).
+        peak = pairwise_reduce(masked, jnp.maximum)
+        # Relative, not absolute: a scene scaled by 1e-12 is still a scene (any normal float's
+        # reciprocal is finite).
+        smallest = jnp.finfo(peak.dtype).tiny
+        usable = (count > 0) & (jnp.max(peak) > smallest)
+        inverse_peak = 1.0 / jnp.where(peak > smallest, peak, 1.0)
         # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
         exponent = int(self.p) if float(self.p).is_integer() else self.p
         total = pairwise_reduce((masked * inverse_peak) ** exponent, jnp.add)
@@ -89,8 +96,9 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
 class MaxRGB(AbstractSurfaceEstimator):
     """RETINEX in its limiting form, per-channel maximum ``w_k = max_i rho_ik`` (§4.5.2).
 
-    With ``temperature`` set, a soft maximum ``t * logsumexp(rho / t)`` over valid pixels gives
-    gradients to every pixel; it tends to the hard maximum as ``t -> 0``.
+    With ``temperature`` set, a soft maximum ``s t * logsumexp(rho / (s t))`` over valid pixels
+    gives gradients to every pixel, where ``s`` is the scene's brightest valid value (so the
+    temperature is relative and the answer scale-invariant); it tends to the hard maximum as ``t -> 0``.
     """
 
     fallback: Float[Array, "3"]
@@ -102,14 +110,17 @@ class MaxRGB(AbstractSurfaceEstimator):
         if self.temperature is None:
             maximum = pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum)
             return with_fallback(maximum, count > 0, self.fallback)
-        t = self.temperature
+        # The temperature is relative to the scene's brightest value, so scaling a scene scales the
+        # estimate and keeps its chromaticity: s * t * logsumexp(rho / (s * t)).
+        brightest = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
+        # The soft maximum of an all-black scene is t log(P) > 0: demand a lit pixel, as the hard one does.
+        lit = (count > 0) & (brightest > jnp.finfo(brightest.dtype).tiny)
+        t = self.temperature * jnp.where(lit, brightest, 1.0)
         scaled = jnp.where(mask[:, None], rgb / t, 0.0)
         top = jax.lax.stop_gradient(jnp.max(scaled, axis=0))
         total = jnp.sum(jnp.where(mask[:, None], jnp.exp(scaled - top), 0.0), axis=0)
         maximum = t * (top + jnp.log(jnp.maximum(total, TINY)))
-        # The soft maximum of an all-black scene is t log(P) > 0: demand a lit pixel, as the hard one does.
-        lit = jnp.sum(top) * t > TINY
-        return with_fallback(maximum, (count > 0) & lit, self.fallback)
+        return with_fallback(maximum, lit, self.fallback)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from ccjax.scenes.surfaces import Specular as Specular
 from ccjax.scenes.surfaces import draw_scene as draw_scene
 from ccjax.scenes.surfaces import draw_scenes as draw_scenes
 from ccjax.scenes.surfaces import draw_without_replacement as draw_without_replacement
+from ccjax.scenes.surfaces import require_count as require_count
 from ccjax.scenes.surfaces import resolve_options as resolve_options
 from ccjax.scenes.surfaces import sample as sample
 from ccjax.scenes.surfaces import sample_batch as sample_batch

@@ -9,6 +9,7 @@ Like the surface-list scenes, every image is a pure function of its key (image `
 from __future__ import annotations
 
 from functools import partial
+from typing import SupportsIndex
 
 import equinox as eqx
 import jax
@@ -21,6 +22,7 @@ from ccjax.scenes.surfaces import (
     ShotNoise,
     Specular,
     draw_without_replacement,
+    require_count,
     resolve_options,
     scene_keys,
 )
@@ -176,11 +178,11 @@ def mondrian_batch(
 def sample_mondrians(
     key: PRNGKeyArray,
     world: World,
-    n_images: int,
+    n_images: SupportsIndex,
     *,
-    height: int = 128,
-    width: int = 128,
-    n_patches: int = 16,
+    height: SupportsIndex = 128,
+    width: SupportsIndex = 128,
+    n_patches: SupportsIndex = 16,
     shading: tuple[float, float] = (0.3, 1.0),
     specular: Specular | bool | None = None,
     noise: ShotNoise | bool | None = None,
@@ -206,12 +208,10 @@ def sample_mondrians(
         :class:`MondrianImages`.
     """
     n_reflectances = int(world.reflectances.shape[0])
-    if not isinstance(n_images, int) or n_images < 1:
-        raise ValueError(f"n_images: expected a positive integer, got {n_images!r}")
-    if not isinstance(n_patches, int) or not 1 <= n_patches <= n_reflectances:
-        raise ValueError(f"n_patches: expected an integer in [1, {n_reflectances}], got {n_patches!r}")
-    if not (isinstance(height, int) and isinstance(width, int) and height >= 1 and width >= 1):
-        raise ValueError(f"height, width: expected positive integers, got {height!r}, {width!r}")
+    n_images = require_count(n_images, "n_images", 1)
+    n_patches = require_count(n_patches, "n_patches", 1, n_reflectances)
+    height = require_count(height, "height", 1)
+    width = require_count(width, "width", 1)
     low, high = shading
     if not 0 <= low <= high:
         raise ValueError(f"shading: expected 0 <= low <= high, got {shading!r}")

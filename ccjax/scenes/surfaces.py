@@ -13,8 +13,11 @@ whatever its chunking or sharding.
 
 from __future__ import annotations
 
+import math
+import operator
 from dataclasses import dataclass
 from functools import partial
+from typing import SupportsIndex
 
 import equinox as eqx
 import jax
@@ -55,6 +58,10 @@ class Specular:
     probability: float = 0.25
     max_amount: float = 2.0
 
+    def __post_init__(self):
+        _require_real(self.probability, "Specular.probability", "a probability in [0, 1]", lambda v: 0 <= v <= 1)
+        _require_real(self.max_amount, "Specular.max_amount", "a finite number >= 0", lambda v: v >= 0)
+
 
 @dataclass(frozen=True)
 class ShotNoise:
@@ -63,6 +70,34 @@ class ShotNoise:
 
     a: float = 2e-6
     b: float = (0.05 / 255.0) ** 2
+
+    def __post_init__(self):
+        _require_real(self.a, "ShotNoise.a", "a finite number >= 0", lambda v: v >= 0)
+        _require_real(self.b, "ShotNoise.b", "a finite number >= 0", lambda v: v >= 0)
+
+
+def _require_real(value, name: str, expected: str, accept) -> None:
+    """Raise a ``ValueError`` naming ``name`` unless ``value`` is a finite real number that ``accept``s."""
+    if isinstance(value, bool) or (not isinstance(value, (int, float)) and not hasattr(value, "__float__")):
+        raise ValueError(f"{name}: expected {expected}, got {value!r}")
+    number = float(value)
+    if not math.isfinite(number) or not accept(number):
+        raise ValueError(f"{name}: expected {expected}, got {value!r}")
+
+
+def require_count(value, name: str, low: int, high: int | None = None) -> int:
+    """``value`` as a Python ``int`` (any integer-like value, e.g. ``np.int64``, via
+    ``operator.index``); a ``ValueError`` naming ``name`` when it is not an integer in range."""
+    span = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
+    if isinstance(value, bool):
+        raise ValueError(f"{name}: expected {span}, got the boolean {value!r}")
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{name}: expected {span}, got {value!r} of type {type(value).__name__}") from None
+    if number < low or (high is not None and number > high):
+        raise ValueError(f"{name}: expected {span}, got {number}")
+    return number
 
 
 class SceneTables(eqx.Module):
@@ -232,8 +267,8 @@ def sweep_keys(key: PRNGKeyArray, n_surfaces: int, start: int, count: int) -> Sc
 def sample(
     key: PRNGKeyArray,
     world: World,
-    n_scenes: int,
-    n_surfaces: int,
+    n_scenes: SupportsIndex,
+    n_surfaces: SupportsIndex,
     *,
     specular: Specular | bool | None = None,
     noise: ShotNoise | bool | None = None,
@@ -256,10 +291,8 @@ def sample(
         :class:`Scenes` with batch size ``n_scenes``.
     """
     n_reflectances = int(world.reflectances.shape[0])
-    if not isinstance(n_scenes, int) or n_scenes < 1:
-        raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")
-    if not isinstance(n_surfaces, int) or not 1 <= n_surfaces <= n_reflectances:
-        raise ValueError(f"n_surfaces: expected an integer in [1, {n_reflectances}], got {n_surfaces!r}")
+    n_scenes = require_count(n_scenes, "n_scenes", 1)
+    n_surfaces = require_count(n_surfaces, "n_surfaces", 1, n_reflectances)
     specular, noise = resolve_options(specular, noise, clip)
     tables = SceneTables.from_world(world)
     return sample_batch(scene_keys(key, 0, n_scenes), tables, n_surfaces, specular, noise, clip)
