@@ -270,6 +270,9 @@ def test_probe_refuses_what_read_image_refuses(tmp_path):
     with pytest.raises(FileNotFoundError, match="no such file"):
         io.probe_image(tmp_path / "missing.png")
     assert io.probe_image(tmp_path / "eight.png", assume_linear=True).bit_depth == 8
+    for function in (io.probe_image, io.read_image):
+        with pytest.raises(ValueError, match=r"saturation: 100.0 must be above the black level 200"):
+            function(tmp_path / "eight.png", black_level=200, saturation=100, assume_linear=True)
 
 
 # ---------------------------------------------------------------------------------------------

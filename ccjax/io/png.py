@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import struct
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,8 +41,10 @@ class PngHeader:
     channels: int
 
 
-def _chunks(blob: bytes):
-    """``(type, data)`` of each chunk after the signature, CRC-checked (ValueError naming the chunk)."""
+def _chunks(blob: bytes) -> Iterator[tuple[bytes, memoryview]]:
+    """``(type, data)`` of each chunk after the signature, CRC-checked (ValueError naming the chunk);
+    the data are views into ``blob`` (no copies: a camera-sized IDAT is checked in place)."""
+    view = memoryview(blob)
     offset = len(PNG_SIGNATURE)
     while offset < len(blob):
         if offset + 12 > len(blob):
@@ -51,7 +54,7 @@ def _chunks(blob: bytes):
         if end > len(blob):
             raise ValueError(f"truncated PNG (chunk at byte {offset} needs {length} bytes)")
         kind = blob[offset + 4 : offset + 8]
-        data = blob[offset + 8 : end - 4]
+        data = view[offset + 8 : end - 4]
         (stored,) = struct.unpack(">I", blob[end - 4 : end])
         if zlib.crc32(data, zlib.crc32(kind)) != stored:
             name = kind.decode("latin-1", "replace")
@@ -63,7 +66,7 @@ def _chunks(blob: bytes):
     raise ValueError("truncated PNG (no IEND chunk)")
 
 
-def _header(kind: bytes, data: bytes) -> PngHeader:
+def _header(kind: bytes, data: bytes | memoryview) -> PngHeader:
     if kind != b"IHDR" or len(data) != 13:
         raise ValueError("corrupt PNG: the first chunk is not a 13-byte IHDR")
     width, height, depth, colour = struct.unpack(">IIBB", data[:10])

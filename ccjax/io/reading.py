@@ -149,7 +149,13 @@ class ImageInfo:
     bit_depth: int
 
 
-def probe_image(path: str | os.PathLike, *, assume_linear: bool = False) -> ImageInfo:
+def probe_image(
+    path: str | os.PathLike,
+    *,
+    black_level: float | int = 0.0,
+    saturation: float | int | None = None,
+    assume_linear: bool = False,
+) -> ImageInfo:
     """Check that :func:`read_image` can read a file, from its header alone (no pixel decoding).
 
     Checks existence, file type, PNG signature and header CRC, TIFF tags (colour space, sample
@@ -158,7 +164,8 @@ def probe_image(path: str | os.PathLike, *, assume_linear: bool = False) -> Imag
 
     Arguments:
         path: the file.
-        assume_linear: accept 8-bit files (as :func:`read_image`).
+        black_level, saturation, assume_linear: as :func:`read_image` (so a command can pass
+            the same options to both); the saturation level must lie above the black level.
 
     Returns:
         An :class:`ImageInfo`.
@@ -199,6 +206,13 @@ def probe_image(path: str | os.PathLike, *, assume_linear: bool = False) -> Imag
     except Exception as error:  # a decoder's own exception types: report them the same way
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
     bit_depth = _check_layout(path, shape, dtype, assume_linear)
+    if suffix in RAW_SUFFIXES:
+        black_level, full_scale = 0.0, 65535.0  # LibRaw's scale (see read_image)
+    else:
+        full_scale = float(np.iinfo(dtype).max) if np.issubdtype(dtype, np.integer) else 1.0
+    level = float(saturation if saturation is not None else full_scale)
+    if not level > black_level:
+        raise ValueError(f"saturation: {level} must be above the black level {black_level}")
     return ImageInfo(path=str(path), height=shape[0], width=shape[1], channels=shape[-1], bit_depth=bit_depth)
 
 
