@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, pairwise_reduce, with_fallback
+from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, pairwise_reduce
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -53,7 +53,7 @@ class GreyWorld(AbstractSurfaceEstimator):
         weights = mask.astype(rgb.dtype)
         count = jnp.sum(weights)
         mean = pairwise_reduce(rgb * weights[:, None], jnp.add) / jnp.maximum(count, 1.0)
-        return with_fallback(mean * self.scale, count > 0, self.fallback)
+        return _lit_or_fallback(mean * self.scale, count > 0, self.fallback)
 
 
 @typing.final
@@ -109,7 +109,7 @@ class MaxRGB(AbstractSurfaceEstimator):
         count = jnp.sum(mask)
         if self.temperature is None:
             maximum = pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum)
-            return with_fallback(maximum, count > 0, self.fallback)
+            return _lit_or_fallback(maximum, count > 0, self.fallback)
         # The temperature is relative to the scene's brightest value, so scaling a scene scales the
         # estimate and keeps its chromaticity: s * t * logsumexp(rho / (s * t)).
         brightest = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
@@ -120,7 +120,15 @@ class MaxRGB(AbstractSurfaceEstimator):
         top = jax.lax.stop_gradient(jnp.max(scaled, axis=0))
         total = jnp.sum(jnp.where(mask[:, None], jnp.exp(scaled - top), 0.0), axis=0)
         maximum = t * (top + jnp.log(jnp.maximum(total, TINY)))
-        return with_fallback(maximum, lit, self.fallback)
+        return _lit_or_fallback(maximum, lit, self.fallback)
+
+
+def _lit_or_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, "3"]) -> Estimate:
+    """``ccjax.estimators.base.with_fallback`` with a scale-free test of light: the estimate must be finite and
+    positive somewhere (not above an absolute threshold, so a scene scaled by 1e-12 is still
+    estimated; these estimates scale with the scene)."""
+    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.max(illuminant) > 0)
+    return Estimate(illuminant=jnp.where(usable, jnp.nan_to_num(illuminant), fallback), ok=usable)
 
 
 # ---------------------------------------------------------------------------------------------
