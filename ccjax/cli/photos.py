@@ -190,7 +190,8 @@ def add_correct(sub) -> None:
         help="correct linear images to the canonical light",
         description="Estimate each image's light, map it to the canonical light with a diagonal map and write the "
         "corrected linear 16-bit image and an 8-bit sRGB preview. IN and OUT are files, or folders (OUT "
-        "is created).",
+        "is created). Inputs are never replaced; existing outputs need --overwrite; every file is written "
+        "to a temporary name and renamed into place.",
     )
     p.add_argument("input", help="a linear image or a folder of them")
     p.add_argument("output", help="output .png/.tif/.tiff file, or a folder when INPUT is a folder")
