@@ -124,10 +124,12 @@ class MaxRGB(AbstractSurfaceEstimator):
 
 
 def _lit_or_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, "3"]) -> Estimate:
-    """``ccjax.estimators.base.with_fallback`` with a scale-free test of light: the estimate must be finite and
-    positive somewhere (not above an absolute threshold, so a scene scaled by 1e-12 is still
-    estimated; these estimates scale with the scene)."""
-    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.max(illuminant) > 0)
+    """``ccjax.estimators.base.with_fallback`` with a scale-free test of light: the estimate must be finite
+    with a positive sum (not a sum above an absolute threshold, so a scene scaled by 1e-12 is still
+    estimated; these estimates scale with the scene). The sum, not the largest channel: a sharpened
+    estimate can have a negative channel, and Table 5.1's protocol falls back when the sum is not
+    positive."""
+    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > 0)
     return Estimate(illuminant=jnp.where(usable, jnp.nan_to_num(illuminant), fallback), ok=usable)
 
 
