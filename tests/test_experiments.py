@@ -186,19 +186,21 @@ def test_reproduction_text_counts_bands_and_checks_orderings():
 
 
 def test_reproduction_text_and_json_layout():
-    """The text view keeps the layout ``ccjax reproduce`` always printed; JSON keeps {"table", "rows"}."""
+    """The text view keeps the layout ``ccjax reproduce`` printed, with each cell's sampling error
+    (``s.e.``) before ``ok``; JSON keeps {"table", "rows"}."""
     rows = [
         {"method": "GW", "column": "rg", "ours": 0.0571, "thesis": 0.058, "relative_difference": -0.0155,
-         "ok_fraction": 1.0},
+         "sampling_error": 0.0012, "ok_fraction": 1.0},
         {"method": "ECRULE-SCWIA-12", "column": "map_rgb", "ours": 51.25, "thesis": 51.1,
-         "relative_difference": 0.00293, "ok_fraction": 0.987},
+         "relative_difference": 0.00293, "sampling_error": 1.234, "ok_fraction": 0.987},
     ]  # fmt: skip
     lines = experiments.Reproduction("4.2", rows).text().splitlines()
     assert lines[0] == "Table 4.2: ours vs thesis (RGB-valued errors in thesis units, white = 255)"
-    assert lines[1] == "method                column              ours    thesis     diff  ok"
-    assert lines[2] == "GW                    rg                0.0571     0.058    -1.6%  100%"
-    assert lines[3] == "ECRULE-SCWIA-12       map_rgb            51.25      51.1    +0.3%  99%"
+    assert lines[1] == "method                column              ours    thesis     diff     s.e.  ok"
+    assert lines[2] == "GW                    rg                0.0571     0.058    -1.6%   0.0012  100%"
+    assert lines[3] == "ECRULE-SCWIA-12       map_rgb            51.25      51.1    +0.3%      1.2  99%"
     assert lines[4] == "cells: 2/2 within ±10%, 2/2 within ±15%, 2/2 within ±20%; largest |diff| 1.6%"
+    assert lines[5] == "s.e.: standard error of ours over the scenes (delta method for the RMS)"
     payload = json.loads(experiments.Reproduction("4.2", rows).to_json())
     assert list(payload) == ["table", "rows"] and payload["rows"] == rows
 

@@ -15,7 +15,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ccjax.experiments.chapter5 import COMPARISONS, SHARPENINGS, chapter5_errors
-from ccjax.experiments.sweeps import is_registered
+from ccjax.experiments.sweeps import is_registered, sampling_error
 from ccjax.sharpening import (
     THESIS_SCALE,
     actual_error,
@@ -49,14 +49,17 @@ class Reproduction51:
         """The reproduction as a text table, then the new method's details and the checks."""
         lines = ["Table 5.1 (Sony DXC-930): ours vs thesis (mapping errors in thesis units, white = 255)"]
         lines.append(
-            f"{'method':<15}{'sharpening':<11}{'column':<9}{'ours':>10}{'thesis':>10}{'diff':>9}{'reverted':>10}{'thesis':>8}"
+            f"{'method':<15}{'sharpening':<11}{'column':<9}{'ours':>10}{'thesis':>10}{'diff':>9}{'s.e.':>9}"
+            f"{'reverted':>10}{'thesis':>8}"
         )
         for row in self.rows:
             diff = "" if row["relative_difference"] is None else f"{row['relative_difference']:+9.1%}"
             lines.append(
                 f"{row['method']:<15}{row['sharpening']:<11}{row['column']:<9}{row['ours']:>10.4g}"
-                f"{row['thesis']:>10.4g}{diff:>9}{row['reverted']:>10d}{row['thesis_reverted']:>8d}"
+                f"{row['thesis']:>10.4g}{diff:>9}{row['sampling_error']:>9.2g}{row['reverted']:>10d}"
+                f"{row['thesis_reverted']:>8d}"
             )
+        lines.append("s.e.: standard error of ours over the scenes (delta method for the RMS)")
         for key, value in self.info.items():
             lines.append(f"{key}: {value}")
         lines.append("thesis behaviour:")
@@ -123,6 +126,7 @@ def reproduce_5_1(
     rows, mapping = [], {}
     for row in result.rows():
         method, sharpening = row["method"], row["sharpening"]
+        per_scene = dict(zip(("map_rgb", "angular"), result.errors[(method, sharpening)][:2]))
         if row["map_rgb"] is not None:
             mapping[(method, sharpening)] = row["map_rgb"]
         for column in ("map_rgb", "angular"):
@@ -137,6 +141,8 @@ def reproduce_5_1(
                     "ours": row[column],
                     "thesis": reference,
                     "relative_difference": row[column] / reference - 1.0 if reference else None,
+                    # The standard error of the cell's RMS over scenes, in the cell's units.
+                    "sampling_error": sampling_error(per_scene[column]) * (THESIS_SCALE if column == "map_rgb" else 1),
                     "reverted": row["reverted"],
                     "thesis_reverted": targets[method].get(f"reverted@{sharpening}", 0),
                 }

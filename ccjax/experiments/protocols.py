@@ -63,8 +63,11 @@ REPRODUCTION_COLUMNS = (
     Column("ours", spec=".4g", width=10, align=">"),
     Column("thesis", spec=".4g", width=10, align=">"),
     Column("relative_difference", "diff", spec="+.1%", width=9, align=">"),
+    Column("sampling_error", "s.e.", spec=".2g", width=9, align=">"),
     Column("ok_fraction", "ok", spec=".0%", gap=2),
 )
+"""The text view of a reproduction; ``s.e.`` is ours' standard error over scenes (delta method for
+the RMS, :func:`ccjax.experiments.sweeps.sampling_error`), in the units of ``ours``."""
 
 
 @dataclass
@@ -83,6 +86,8 @@ class Reproduction:
                 f"{np.sum(differences <= band)}/{len(differences)} within ±{band:.0%}" for band in (0.10, 0.15, 0.20)
             )
             footer.append(f"cells: {within}; largest |diff| {np.max(differences):.1%}")
+            if any(row.get("sampling_error") is not None for row in self.rows):
+                footer.append("s.e.: standard error of ours over the scenes (delta method for the RMS)")
         footer.extend(f"ordering: {line}" for line in self.orderings())
         title = [f"Table {self.table}: ours vs thesis (RGB-valued errors in thesis units, white = 255)"]
         return Report(self.rows, REPRODUCTION_COLUMNS, metadata={"table": self.table}, title=title, footer=footer)
@@ -128,7 +133,9 @@ def reproduce(
         progress: show a progress bar.
 
     Returns:
-        A :class:`Reproduction`; ``relative_difference = ours / thesis - 1``.
+        A :class:`Reproduction`; ``relative_difference = ours / thesis - 1``; ``sampling_error`` is
+        the standard error of ``ours`` over the scenes (delta method for the RMS, see
+        :func:`ccjax.experiments.sweeps.sampling_error`), in the units of ``ours``.
     """
     from ccjax import thesis
 
@@ -158,8 +165,10 @@ def reproduce(
                 if column not in targets[method] or statistic not in result.errors[method][condition.n_surfaces]:
                     continue
                 ours = result.value(method, condition.n_surfaces, statistic)
+                error = result.standard_error(method, condition.n_surfaces, statistic)
                 if statistic in RGB_VALUED:
                     ours *= thesis.THESIS_RGB_SCALE
+                    error *= thesis.THESIS_RGB_SCALE
                 reference = targets[method][column]
                 rows.append(
                     {
@@ -168,6 +177,7 @@ def reproduce(
                         "ours": ours,
                         "thesis": reference,
                         "relative_difference": ours / reference - 1.0,
+                        "sampling_error": error,
                         "ok_fraction": result.ok_fraction(method, condition.n_surfaces),
                     }
                 )
