@@ -1,11 +1,19 @@
 """From an image to an estimator's input (Barnard 1999 §4.6, Table 4.6).
 
-Surface-list estimators get ``(rgb (N, 3), mask (N,))``: clipped pixels are dropped (the thesis
-discards them, §2.7) and too-dark ones (R+G+B below ``dark`` times the brightest usable pixel's;
-2 %), then one of the preprocessing methods of Table 4.6 (:data:`TABLE_4_6`) reduces the image to
-a list of surfaces: block averaging (default 5x5, "roughly optimal", §4.6), block averaging + RGB
-clustering, block averaging + convex-hull reduction, or region-growing segmentation. Image-only
-estimators (``input_kind == "image"``, e.g. grey edge) get the image and its unclipped-pixel mask.
+:func:`prepare` gives what a model is called with, per model by default
+(``model.default_preprocessing``, overridable per call):
+
+* ``pixels`` (statistics methods: grey world, shades of grey, max-RGB, grey edge): the image and
+  its usable mask, every pixel that is not clipped, has no zero channel and lies inside the
+  optional user mask (the field's protocol); :func:`run_model` gives surface models the pixel
+  list (grey world: the masked mean, the same estimate from one reduction).
+* ``ave5`` and the other Table 4.6 methods (:data:`TABLE_4_6`; world-based methods: gamut
+  mapping, Colour by Correlation, nets, DB-GW): the thesis' surface list. Clipped pixels are
+  dropped (§2.7), and too-dark ones (R+G+B below ``dark`` = 2 % of the 99th percentile of the
+  usable pixels' R+G+B, :func:`usable_pixels`), then block averaging (default 5x5, "roughly
+  optimal", §4.6), block averaging + RGB clustering, block averaging + convex-hull reduction, or
+  region-growing segmentation reduce the image to a list of surfaces, padded to a power of two
+  (:func:`padded_size`) so jit compiles once per size class.
 """
 
 from __future__ import annotations
@@ -25,30 +33,105 @@ from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.reading import LinearImage
 
 DEFAULT_PREPROCESSING = "ave5"
+"""The thesis' preprocessing (§4.6): the default of world-based surface-list methods."""
+PIXELS = "pixels"
+"""Every usable pixel, no dark rule: the default of the statistics methods (the field's protocol)."""
 DEFAULT_DARK = 0.02
+"""Dark rule: drop pixels whose R+G+B is below this fraction of the reference brightness."""
+DEFAULT_PERCENTILE = 99.0
+"""Dark rule: the reference brightness is this percentile of the usable pixels' R+G+B."""
+
+_CHUNK_PIXELS = 1 << 20  # pixels per chunk of block averaging (bounded working memory)
 
 
-def usable_pixels(rgb: np.ndarray, clipped: np.ndarray, dark: float = DEFAULT_DARK) -> np.ndarray:
-    """Pixels the thesis keeps (§4.6): not clipped, and not "overly dark".
+def _check_mask(mask: np.ndarray | None, shape: tuple[int, ...], what: str = "mask") -> np.ndarray | None:
+    if mask is None:
+        return None
+    mask = np.asarray(mask)
+    if mask.dtype != bool:
+        raise ValueError(f"{what}: expected a boolean (H, W) array, got dtype {mask.dtype}")
+    if mask.shape != tuple(shape):
+        raise ValueError(f"{what}: expected shape {tuple(shape)} (the image's height and width), got {mask.shape}")
+    return mask
+
+
+def usable_pixels(
+    rgb: np.ndarray,
+    clipped: np.ndarray,
+    dark: float = DEFAULT_DARK,
+    *,
+    percentile: float = DEFAULT_PERCENTILE,
+    mask: np.ndarray | None = None,
+) -> np.ndarray:
+    """Pixels an estimator may use (§4.6: clipped and "overly dark" pixels are discarded).
+
+    A pixel is usable when
+
+    1. it is not clipped (``clipped``: a channel at or above the saturation level, or transparent;
+       :func:`ccjax.io.read_image`), and
+    2. no channel is zero or negative: a channel at the black level says nothing about the light
+       in that channel (under-exposed, or noise clamped at black), and the field's protocol drops
+       such pixels, and
+    3. it lies inside ``mask`` (optional user mask, e.g. excluding a colour checker), and
+    4. (the dark rule, ``dark > 0``) its R+G+B is at least ``dark`` times the ``percentile``-th
+       percentile of the R+G+B of the pixels passing 1-3.
+
+    The thesis discards "overly dark" pixels without saying relative to what (§4.6, §2.7). The
+    reference is a high percentile, not the single brightest pixel: one specular highlight then
+    raised the threshold so far that it discarded most of a photograph (one image kept 460 of
+    4,096 pixels). ``percentile=100`` is that old rule (the brightest usable pixel). Percentiles
+    interpolate linearly between order statistics (``numpy.percentile``'s default).
 
     Arguments:
-        rgb: ``(H, W, 3)`` linear image.
-        clipped: ``(H, W)`` True where a channel saturated.
-        dark: keep pixels whose R+G+B is at least this fraction of the brightest unclipped pixel's.
+        rgb: ``(H, W, 3)`` linear image (not modified, not copied).
+        clipped: ``(H, W)`` True where a pixel is not usable (saturated or transparent).
+        dark: fraction in ``[0, 1)``; 0 disables the dark rule (rules 1-3 only).
+        percentile: the reference percentile in ``(0, 100]``.
+        mask: optional ``(H, W)`` bool, True where the user allows a pixel.
 
     Returns:
         ``(H, W)`` bool.
     """
     if not 0 <= dark < 1:
         raise ValueError(f"dark: expected a fraction in [0, 1), got {dark!r}")
+    if not 0 < percentile <= 100:
+        raise ValueError(f"percentile: expected a number in (0, 100], got {percentile!r}")
+    mask = _check_mask(mask, rgb.shape[:2])
+    # Channel by channel: (H, W) booleans, never an (H, W, 3) temporary (48-MP images).
+    usable = ~clipped & (rgb[..., 0] > 0)
+    usable &= rgb[..., 1] > 0
+    usable &= rgb[..., 2] > 0
+    if mask is not None:
+        usable &= mask
+    if dark == 0 or not usable.any():
+        return usable
     brightness = rgb.sum(axis=-1)
-    peak = brightness[~clipped].max(initial=0.0)
-    return ~clipped & (brightness >= dark * peak) & (brightness > 0)
+    candidates = brightness[usable]
+    # overwrite_input: the percentile may reorder this copy in place instead of making another.
+    reference = float(np.percentile(candidates, percentile, overwrite_input=True))
+    del candidates
+    usable &= brightness >= dark * reference
+    return usable
 
 
-def block_average(rgb: np.ndarray, usable: np.ndarray, block: int, max_rg_spread: float | None = None) -> np.ndarray:
+def _tile_starts(length: int, block: int) -> np.ndarray:
+    return np.arange(0, length, block)
+
+
+def _tile_sizes(length: int, block: int) -> np.ndarray:
+    return np.diff(np.append(_tile_starts(length, block), length))
+
+
+def block_average(
+    rgb: np.ndarray,
+    usable: np.ndarray,
+    block: int,
+    max_rg_spread: float | None = None,
+    *,
+    edges: bool = False,
+) -> np.ndarray:
     """Means of non-overlapping ``block x block`` tiles whose pixels are all usable (§4.6, the
-    thesis' ``ave<b>``); edge rows/columns that do not fill a tile are dropped.
+    thesis' ``ave<b>``).
 
     Arguments:
         rgb: ``(H, W, 3)`` linear image.
@@ -58,19 +141,45 @@ def block_average(rgb: np.ndarray, usable: np.ndarray, block: int, max_rg_spread
             bounding box has a diagonal above it, i.e. tiles straddling a boundary between surfaces,
             whose mean is a mixture no surface produces (harmless for gamut mapping, which is
             convex, but it fills histogram cells for Colour by Correlation).
+        edges: an extension (``ave<b>-edges``): also keep the partial tiles of the right and bottom
+            edges (fewer than ``block`` rows or columns), under the same rule (all their pixels
+            usable). Without it those edge rows and columns are dropped, as in the thesis.
 
     Returns:
-        ``(n, 3)`` float32 tile means, in scan order.
+        ``(n, 3)`` float32 tile means (summed in float64), in scan order.
+
+    The image is processed in bands of whole tile rows, so the working memory stays small (a few
+    megabytes) whatever the image size: no copy of the image is made.
     """
-    height, width = (rgb.shape[0] // block) * block, (rgb.shape[1] // block) * block
-    tiles = rgb[:height, :width].reshape(height // block, block, width // block, block, 3)
-    ok = usable[:height, :width].reshape(height // block, block, width // block, block).all(axis=(1, 3))
-    if max_rg_spread is not None:
-        total = tiles.sum(axis=-1, keepdims=True, dtype=np.float64)
-        chroma = tiles[..., :2] / np.where(total > 0, total, 1.0)
-        spread = chroma.max(axis=(1, 3)) - chroma.min(axis=(1, 3))
-        ok &= np.sqrt((spread**2).sum(axis=-1)) <= max_rg_spread
-    return tiles.mean(axis=(1, 3), dtype=np.float64)[ok].astype(np.float32)
+    if block < 1:
+        raise ValueError(f"block: expected a tile side >= 1, got {block!r}")
+    height, width = rgb.shape[:2]
+    if not edges:
+        height, width = (height // block) * block, (width // block) * block
+    if height == 0 or width == 0:
+        return np.zeros((0, 3), np.float32)
+    columns = _tile_starts(width, block)
+    column_sizes = _tile_sizes(width, block)
+    band = block * max(1, _CHUNK_PIXELS // (block * width))
+    means = []
+    for top in range(0, height, band):
+        bottom = min(top + band, height)
+        rows = _tile_starts(bottom - top, block)
+        part = rgb[top:bottom, :width]
+        sums = np.add.reduceat(np.add.reduceat(part, rows, axis=0, dtype=np.float64), columns, axis=1)
+        counts = np.add.reduceat(
+            np.add.reduceat(usable[top:bottom, :width], rows, axis=0, dtype=np.int32), columns, axis=1
+        )
+        sizes = _tile_sizes(bottom - top, block)[:, None] * column_sizes[None, :]
+        ok = counts == sizes
+        if max_rg_spread is not None:
+            total = part.sum(axis=-1, keepdims=True, dtype=np.float64)
+            chroma = part[..., :2] / np.where(total > 0, total, 1.0)
+            high = np.maximum.reduceat(np.maximum.reduceat(chroma, rows, axis=0), columns, axis=1)
+            low = np.minimum.reduceat(np.minimum.reduceat(chroma, rows, axis=0), columns, axis=1)
+            ok &= np.sqrt(((high - low) ** 2).sum(axis=-1)) <= max_rg_spread
+        means.append((sums / sizes[..., None])[ok])
+    return np.concatenate(means).astype(np.float32)
 
 
 def cluster_rgb(rgb: np.ndarray, divisions: int = 100) -> np.ndarray:
@@ -157,14 +266,19 @@ def segment(
 
 @dataclass(frozen=True)
 class Preprocessing:
-    """One of the thesis' preprocessing methods (Table 4.6), parsed from a name.
+    """One of the thesis' preprocessing methods (Table 4.6), parsed from a name, or ``pixels``.
 
     ``ave<b>`` (block averaging, ``ave1`` = single pixels), ``ave<b>-cluster`` (+ RGB clustering,
     100 divisions), ``ave<b>-hull`` (+ convex-hull reduction), ``seg-<min size>-<rg tol>-<rel
     R+G+B tol>`` (segmentation, e.g. ``seg-5-0.005-0.2``), ``seg-...-hull``, and ``generic``
-    (Table 4.5's segmentation, ``seg-5-0.05-0.1``). Extension: ``ave<b>-u<spread>`` keeps only
-    blocks whose (r,g) spread is at most ``<spread>`` (e.g. ``ave5-u0.04``; :func:`block_average`),
-    combinable with ``-cluster``/``-hull``.
+    (Table 4.5's segmentation, ``seg-5-0.05-0.1``). These use the dark rule of
+    :func:`usable_pixels`.
+
+    Extensions: ``pixels``, every usable pixel with no dark rule (the image and its mask, as the
+    field evaluates statistics methods: :func:`prepare`); ``ave<b>-edges`` also keeps the partial
+    tiles of the right and bottom edges (:func:`block_average`); ``ave<b>-u<spread>`` keeps only
+    blocks whose (r,g) spread is at most ``<spread>`` (e.g. ``ave5-u0.04``). They combine in the
+    order ``ave<b>[-edges][-u<spread>][-cluster|-hull]``, e.g. ``ave5-edges-hull``.
     """
 
     name: str
@@ -172,37 +286,75 @@ class Preprocessing:
     segmentation: tuple[int, float, float] | None = None
     reduction: str | None = None  # None, "cluster" or "hull"
     max_rg_spread: float | None = None
+    edges: bool = False
+    pixels: bool = False
 
     @classmethod
     def parse(cls, name: str) -> Preprocessing:
         """The method called ``name`` (class docstring); ``ValueError`` for unknown names."""
+        if name == PIXELS:
+            return cls(name=name, block=1, pixels=True)
         text = "seg-5-0.05-0.1" if name == "generic" else name
         number = r"(\d+(?:\.\d*)?|\.\d+)"
-        match = re.fullmatch(rf"ave(\d+)(?:-u{number})?(?:-(cluster|hull))?", text)
+        match = re.fullmatch(rf"ave(\d+)(-edges)?(?:-u{number})?(?:-(cluster|hull))?", text)
         if match and int(match[1]) >= 1:
-            spread = None if match[2] is None else float(match[2])
-            return cls(name=name, block=int(match[1]), reduction=match[3], max_rg_spread=spread)
+            spread = None if match[3] is None else float(match[3])
+            return cls(
+                name=name,
+                block=int(match[1]),
+                reduction=match[4],
+                max_rg_spread=spread,
+                edges=match[2] is not None,
+            )
         match = re.fullmatch(rf"seg-(\d+)-{number}-{number}(?:-(hull))?", text)
         if match:
             return cls(
                 name=name, block=1, segmentation=(int(match[1]), float(match[2]), float(match[3])), reduction=match[4]
             )
         raise ValueError(
-            f"preprocessing: unknown method {name!r}; expected ave<b>[-u<spread>][-cluster|-hull], "
+            f"preprocessing: unknown method {name!r}; expected pixels, ave<b>[-edges][-u<spread>][-cluster|-hull], "
             "seg-<min>-<rg>-<rel>[-hull] or generic"
         )
 
     def apply(self, rgb: np.ndarray, usable: np.ndarray) -> np.ndarray:
-        """The surface list ``(n, 3)`` for one image (``usable`` from :func:`usable_pixels`)."""
+        """The surface list ``(n, 3)`` for one image (``usable`` from :func:`usable_pixels`;
+        ``pixels``: the usable pixels themselves, in scan order)."""
+        if self.pixels:
+            return rgb[usable]
         if self.segmentation is not None:
             data = segment(rgb, usable, *self.segmentation)
         else:
-            data = block_average(rgb, usable, self.block, self.max_rg_spread)
+            data = block_average(rgb, usable, self.block, self.max_rg_spread, edges=self.edges)
         if self.reduction == "cluster":
             data = cluster_rgb(data)
         elif self.reduction == "hull":
             data = hull_reduce(data)
         return data
+
+    def max_count(self, height: int, width: int) -> int:
+        """The most surfaces :meth:`apply` can return for an ``height x width`` image."""
+        if self.pixels:
+            return height * width
+        if self.segmentation is not None:
+            return (height * width) // max(self.segmentation[0], 1)
+        if self.edges:
+            return -(-height // self.block) * -(-width // self.block)
+        return (height // self.block) * (width // self.block)
+
+
+def as_preprocessing(preprocessing: str | Preprocessing) -> Preprocessing:
+    """``preprocessing`` as a :class:`Preprocessing` (names are parsed; ``ValueError`` if unknown)."""
+    return preprocessing if isinstance(preprocessing, Preprocessing) else Preprocessing.parse(preprocessing)
+
+
+def resolve(model: AbstractEstimator, preprocessing: str | Preprocessing | None = None) -> Preprocessing:
+    """The preprocessing ``model`` gets: ``preprocessing``, or the model's own default
+    (``model.default_preprocessing``: ``pixels`` for the statistics methods, ``ave5`` for the
+    world-based ones) when it is None. Image estimators always get the image (``pixels``): they
+    need the pixels' neighbours, so a surface-list preprocessing cannot apply to them."""
+    if model.input_kind == "image":
+        return Preprocessing.parse(PIXELS)
+    return as_preprocessing(model.default_preprocessing if preprocessing is None else preprocessing)
 
 
 TABLE_4_6 = (
@@ -228,39 +380,115 @@ def surfaces(
     *,
     dark: float = DEFAULT_DARK,
     pad: bool = True,
+    mask: np.ndarray | None = None,
+    percentile: float = DEFAULT_PERCENTILE,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Estimator input of a surface-list method.
 
     Arguments:
         image: a :class:`ccjax.io.LinearImage`.
-        preprocessing: a :class:`Preprocessing` or its name (default ``ave5``).
-        dark: dark-pixel fraction (:func:`usable_pixels`).
+        preprocessing: a :class:`Preprocessing` or its name (default ``ave5``). ``pixels`` gives
+            the list of usable pixels (no dark rule); :func:`prepare` gives the image instead,
+            which is smaller and faster.
+        dark, percentile, mask: the usable-pixel rules (:func:`usable_pixels`).
         pad: pad to :func:`padded_size` with masked zero rows, so batches share compiled code.
 
     Returns:
         ``(rgb (N, 3) float32, mask (N,) bool)``.
     """
-    method = preprocessing if isinstance(preprocessing, Preprocessing) else Preprocessing.parse(preprocessing)
-    data = method.apply(image.rgb, usable_pixels(image.rgb, image.clipped, dark))
+    method = as_preprocessing(preprocessing)
+    usable = usable_pixels(image.rgb, image.clipped, 0.0 if method.pixels else dark, percentile=percentile, mask=mask)
+    data = method.apply(image.rgb, usable)
     size = padded_size(len(data)) if pad else len(data)
     rgb = np.zeros((size, 3), np.float32)
     rgb[: len(data)] = data
-    mask = np.arange(size) < len(data)
-    return rgb, mask
+    valid = np.arange(size) < len(data)
+    return rgb, valid
+
+
+def prepare(
+    model: AbstractEstimator,
+    image: LinearImage,
+    preprocessing: str | Preprocessing | None = None,
+    *,
+    dark: float = DEFAULT_DARK,
+    mask: np.ndarray | None = None,
+    percentile: float = DEFAULT_PERCENTILE,
+) -> tuple[np.ndarray, np.ndarray]:
+    """What ``model`` is called with for one photograph; pass both to :func:`run_model`.
+
+    Arguments:
+        model: a fitted estimator.
+        image: a :class:`ccjax.io.LinearImage`.
+        preprocessing: a :class:`Preprocessing` or its name; None: the model's default
+            (:func:`resolve`: ``pixels`` for grey world, shades of grey, max-RGB and grey edge,
+            ``ave5`` for the world-based methods).
+        dark, percentile: the dark rule of :func:`usable_pixels` (surface lists only; ``pixels``
+            has none).
+        mask: optional ``(H, W)`` bool, True where the user allows a pixel (e.g. from
+            :func:`ccjax.io.read_mask`), combined with the image's own rules.
+
+    Returns:
+        ``pixels`` (and every image estimator): the image ``(H, W, 3)`` itself (not copied) and its
+        usable mask ``(H, W)`` (not clipped, no zero channel, inside ``mask``); otherwise the
+        surface list ``(N, 3)`` and its mask ``(N,)``, padded to :func:`padded_size`
+        (:func:`surfaces`).
+
+    Shapes, for compiling ahead of time: an image input has the image's shape; a surface list
+    has one of the sizes :func:`input_shapes` lists (the count depends on the content, so a
+    caller compiles each size class once, ahead of time or when it first appears).
+    :func:`input_key` says which models share an input.
+    """
+    method = resolve(model, preprocessing)
+    if method.pixels:
+        return image.rgb, usable_pixels(image.rgb, image.clipped, 0.0, mask=mask)
+    return surfaces(image, method, dark=dark, mask=mask, percentile=percentile)
+
+
+def input_key(model: AbstractEstimator, preprocessing: str | Preprocessing | None = None) -> str:
+    """A key equal for models that :func:`prepare` gives the same input (with the same image,
+    dark rule and mask): the resolved method's name, so a caller prepares each input once."""
+    return resolve(model, preprocessing).name
+
+
+def input_shapes(
+    model: AbstractEstimator, image_shape: tuple[int, int], preprocessing: str | Preprocessing | None = None
+) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
+    """Every ``(rgb shape, mask shape)`` :func:`prepare` can give ``model`` for images of
+    ``image_shape``, so a caller can compile them all before timing anything (e.g. before a
+    progress bar starts).
+
+    Arguments:
+        model: a fitted estimator.
+        image_shape: ``(H, W)``.
+        preprocessing: as for :func:`prepare`.
+
+    Returns:
+        ``[((H, W, 3), (H, W))]`` for image inputs; for surface lists ``[((n, 3), (n,)), ...]`` for
+        each size class ``n`` from 64 to :func:`padded_size` of the most surfaces the method can
+        return (a power of two each; a 48-MP image at ``ave5`` has 16 classes, most of which a
+        data set never reaches: compile lazily there).
+    """
+    height, width = image_shape
+    method = resolve(model, preprocessing)
+    if method.pixels:
+        return [((height, width, 3), (height, width))]
+    top, size, shapes = padded_size(method.max_count(height, width)), padded_size(0), []
+    while size <= top:
+        shapes.append(((size, 3), (size,)))
+        size *= 2
+    return shapes
 
 
 def model_input(
     model: AbstractEstimator,
     image: LinearImage,
-    preprocessing: str | Preprocessing = DEFAULT_PREPROCESSING,
+    preprocessing: str | Preprocessing | None = None,
     *,
     dark: float = DEFAULT_DARK,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """What ``model`` is called with: the image and its unclipped mask for image-only methods,
-    the preprocessed surface list (:func:`surfaces`) otherwise."""
-    if model.input_kind == "image":
-        return image.rgb, ~image.clipped
-    return surfaces(image, preprocessing, dark=dark)
+    """:func:`prepare` (kept for callers of the earlier name)."""
+    return prepare(model, image, preprocessing, dark=dark)
 
 
 def _concrete(model: AbstractEstimator) -> Callable[[Array, Array], Estimate]:
@@ -271,29 +499,35 @@ def _concrete(model: AbstractEstimator) -> Callable[[Array, Array], Estimate]:
 
 @eqx.filter_jit
 def run_model(model: AbstractEstimator, rgb: Array, mask: Array) -> Estimate:
-    """``model(rgb, mask)``, jit-compiled once per model structure and input shape."""
+    """Run ``model`` on what :func:`prepare` gave, jit-compiled once per model structure and
+    input shape: an image ``(H, W, 3)`` goes through :func:`estimate_pixels` (so surface models
+    see every usable pixel), a surface list ``(N, 3)`` to the model directly."""
+    if rgb.ndim == 3:
+        return estimate_pixels(model, rgb, mask)
     return _concrete(model)(rgb, mask)
 
 
 def estimate_image(
     model: AbstractEstimator,
     image: LinearImage,
-    preprocessing: str | Preprocessing = DEFAULT_PREPROCESSING,
+    preprocessing: str | Preprocessing | None = None,
     *,
     dark: float = DEFAULT_DARK,
+    mask: np.ndarray | None = None,
+    percentile: float = DEFAULT_PERCENTILE,
 ) -> Estimate:
     """Estimate the light of one image with a fitted model (jit-compiled per input size).
 
     Arguments:
         model: a fitted estimator.
         image: the image.
-        preprocessing, dark: see :func:`surfaces` (ignored by image-only methods).
+        preprocessing, dark, mask, percentile: see :func:`prepare` (None: the model's default).
 
     Returns:
         The model's :class:`ccjax.estimators.base.Estimate`.
     """
-    rgb, mask = model_input(model, image, preprocessing, dark=dark)
-    return run_model(model, jnp.asarray(rgb), jnp.asarray(mask))
+    rgb, valid = prepare(model, image, preprocessing, dark=dark, mask=mask, percentile=percentile)
+    return run_model(model, jnp.asarray(rgb), jnp.asarray(valid))
 
 
 def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "3"]:

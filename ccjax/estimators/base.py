@@ -91,11 +91,23 @@ class AbstractEstimator(eqx.Module):
         block_size: scenes per vmapped block in :func:`estimate_batch` (``None``: one ``vmap``
             over the whole batch). Kernels with a large per-scene working set set it so a
             block's intermediates stay in cache.
+
+    Property ``default_preprocessing`` names how the image pipeline prepares a photograph for
+    the model (:func:`ccjax.preprocessing.prepare`) when the caller does not say.
     """
 
     input_kind: ClassVar[str] = "surfaces"
     estimates_brightness: ClassVar[bool] = False
     block_size: ClassVar[int | None] = None
+
+    @property
+    def default_preprocessing(self) -> str:
+        """The image pipeline's default input for this model (a :class:`ccjax.preprocessing.Preprocessing`
+        name): ``"ave5"``, the thesis' 5x5 block averages (§4.6), for methods fitted to a world's
+        gamut or statistics (gamut mapping, Colour by Correlation, nets, DB-GW); ``"pixels"``, every
+        usable pixel, for the statistics methods that make no use of a world (grey world, shades of
+        grey, max-RGB, grey edge), as the field evaluates them."""
+        return "ave5"
 
     @abc.abstractmethod
     def __call__(self, x: Float[Array, "..."], mask: Bool[Array, "..."]) -> Estimate:
@@ -231,8 +243,15 @@ def pairwise_reduce(values: Float[Array, "P ..."], op) -> Float[Array, "..."]:
 
 
 def with_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, "3"]) -> Estimate:
-    """Return ``illuminant`` where ``usable``, else ``fallback`` with ``ok=False`` (never NaN)."""
-    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > TINY)
+    """Return ``illuminant`` where ``usable``, else ``fallback`` with ``ok=False`` (never NaN).
+
+    The estimate must also be finite with a positive sum. The test is scale-free (a sum above 0,
+    not above an absolute threshold): a scene scaled by 1e-12 is still a scene, and the estimates
+    of the statistics methods scale with it. The sum, not the largest channel: a sharpened
+    estimate can have a negative channel, and Table 5.1's protocol falls back when the sum is not
+    positive.
+    """
+    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > 0)
     safe = jnp.where(usable, jnp.nan_to_num(illuminant), fallback)
     return Estimate(illuminant=safe, ok=usable)
 

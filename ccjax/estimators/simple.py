@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, pairwise_reduce
+from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, pairwise_reduce, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -43,17 +43,30 @@ class GreyWorld(AbstractSurfaceEstimator):
 
     ``scale = w_C / g_C``: 2 for GW (grey = 50 % reflectance), the canonical white over the
     reflectance database's mean canonical RGB for DB-GW.
+
+    Attributes:
+        scale: ``(3,)`` ``w_C / g_C``.
+        fallback: ``(3,)`` estimate for scenes without usable data.
+        database: True for DB-GW, whose grey is the world's reflectance database: a world-based
+            method, prepared from photographs as the thesis did (5x5 block averages); plain GW
+            gets every usable pixel (:attr:`default_preprocessing`). Static: it is configuration.
     """
 
     scale: Float[Array, "3"]
     fallback: Float[Array, "3"]
+    database: bool = eqx.field(static=True, default=False)
     estimates_brightness = True
+
+    @property
+    def default_preprocessing(self) -> str:
+        """``"ave5"`` for DB-GW (world-based, §4.6), ``"pixels"`` for GW (every usable pixel)."""
+        return "ave5" if self.database else "pixels"
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         weights = mask.astype(rgb.dtype)
         count = jnp.sum(weights)
         mean = pairwise_reduce(rgb * weights[:, None], jnp.add) / jnp.maximum(count, 1.0)
-        return _lit_or_fallback(mean * self.scale, count > 0, self.fallback)
+        return with_fallback(mean * self.scale, count > 0, self.fallback)
 
 
 @typing.final
@@ -66,6 +79,11 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
 
     p: float = eqx.field(static=True)  # static: an integer p compiles to multiplications
     fallback: Float[Array, "3"]
+
+    @property
+    def default_preprocessing(self) -> str:
+        """``"pixels"``: a statistics method, evaluated on every usable pixel as the field does."""
+        return "pixels"
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
@@ -105,11 +123,16 @@ class MaxRGB(AbstractSurfaceEstimator):
     temperature: Float[Array, ""] | None = None
     estimates_brightness = True
 
+    @property
+    def default_preprocessing(self) -> str:
+        """``"pixels"``: a statistics method, evaluated on every usable pixel as the field does."""
+        return "pixels"
+
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
         if self.temperature is None:
             maximum = pairwise_reduce(jnp.where(mask[:, None], rgb, 0.0), jnp.maximum)
-            return _lit_or_fallback(maximum, count > 0, self.fallback)
+            return with_fallback(maximum, count > 0, self.fallback)
         # The temperature is relative to the scene's brightest value, so scaling a scene scales the
         # estimate and keeps its chromaticity: s * t * logsumexp(rho / (s * t)).
         brightest = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
@@ -120,17 +143,7 @@ class MaxRGB(AbstractSurfaceEstimator):
         top = jax.lax.stop_gradient(jnp.max(scaled, axis=0))
         total = jnp.sum(jnp.where(mask[:, None], jnp.exp(scaled - top), 0.0), axis=0)
         maximum = t * (top + jnp.log(jnp.maximum(total, TINY)))
-        return _lit_or_fallback(maximum, lit, self.fallback)
-
-
-def _lit_or_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, "3"]) -> Estimate:
-    """``ccjax.estimators.base.with_fallback`` with a scale-free test of light: the estimate must be finite
-    with a positive sum (not a sum above an absolute threshold, so a scene scaled by 1e-12 is still
-    estimated; these estimates scale with the scene). The sum, not the largest channel: a sharpened
-    estimate can have a negative channel, and Table 5.1's protocol falls back when the sum is not
-    positive."""
-    usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > 0)
-    return Estimate(illuminant=jnp.where(usable, jnp.nan_to_num(illuminant), fallback), ok=usable)
+        return with_fallback(maximum, lit, self.fallback)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -151,7 +164,7 @@ def fit_gw(world: World) -> GreyWorld:
 
 def fit_db_gw(world: World) -> GreyWorld:
     database_grey = jnp.mean(world.canonical_rgb, axis=0)
-    return GreyWorld(scale=world.canonical_white / database_grey, fallback=average_illuminant(world))
+    return GreyWorld(scale=world.canonical_white / database_grey, fallback=average_illuminant(world), database=True)
 
 
 def fit_retinex(world: World, temperature: float | None = None) -> MaxRGB:

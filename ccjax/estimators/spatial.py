@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, AbstractImageEstimator, Estimate, with_fallback
+from ccjax.estimators.base import AbstractImageEstimator, Estimate, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
 from ccjax.world import World
@@ -170,7 +170,9 @@ def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: 
     count = jnp.maximum(jnp.sum(valid), 1)
     # Divide by the peak first so values^p neither overflows nor underflows for large p.
     peak = jax.lax.stop_gradient(jnp.max(maximum))
-    peak = jnp.where(peak > TINY, peak, 1.0)
+    # Scale-free: any normal float is a usable peak (its reciprocal is finite), so an image scaled
+    # by 1e-12 is still estimated.
+    peak = jnp.where(peak > jnp.finfo(peak.dtype).tiny, peak, 1.0)
     scaled = jnp.where(weights, values / peak, 0.0)
     positive_scaled = weights & (scaled > 0)
     powered = jnp.where(positive_scaled, jnp.where(positive_scaled, scaled, 1.0) ** finite_p, 0.0)
@@ -200,14 +202,21 @@ class GreyEdge(AbstractImageEstimator):
     order: int = eqx.field(static=True)
     sigma: float = eqx.field(static=True)
 
+    @property
+    def default_preprocessing(self) -> str:
+        """``"pixels"``: the image and its usable-pixel mask (an image estimator never gets blocks)."""
+        return "pixels"
+
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
         planes = jnp.moveaxis(image, -1, 0)  # channel-first: the layout XLA's CPU code filters fastest
         response = _planar_response(planes, self.order, self.sigma)
         valid = valid_positions(mask, support_radius(self.order, self.sigma))
         estimate = minkowski_mean(response, valid, self.p)
-        # Edges of a flat image are rounding noise, not zero: demand edges above float precision.
+        # Edges of a flat image are rounding noise, not zero: demand edges above float precision,
+        # relative to the image's brightest value (scale-free; a black image has floor 0 and no
+        # positive edge).
         floor = _FLAT * jax.lax.stop_gradient(jnp.max(jnp.abs(jnp.where(mask[..., None], image, 0.0))))
-        usable = jnp.any(valid) & jnp.all(estimate > jnp.maximum(floor, TINY))
+        usable = jnp.any(valid) & jnp.all(estimate > floor)
         return with_fallback(estimate, usable, self.fallback)
 
 

@@ -3,8 +3,9 @@
 The pipeline's first and last steps (Barnard 1999 §4.6): :func:`read_image` gives a
 :class:`LinearImage` on the unit scale with its clipped pixels marked; :func:`write_linear` writes
 a corrected image as 16-bit PNG/TIFF and :func:`write_preview` an 8-bit sRGB preview; ground
-truth is a CSV ``image,r,g,b`` (:func:`read_ground_truth`). :func:`probe_image` validates a file
-from its header alone, so every input can be checked before any work and decoded once.
+truth is a CSV ``image,r,g,b`` (:func:`read_ground_truth`); :func:`read_mask` reads a pixel mask
+file (nonzero = usable). :func:`probe_image` validates a file from its header alone, so every
+input can be checked before any work and decoded once.
 """
 
 from ccjax.io.ground_truth import match_ground_truth as match_ground_truth
@@ -18,6 +19,7 @@ from ccjax.io.preview import preview_matrix as preview_matrix
 from ccjax.io.preview import preview_matrix_cached as preview_matrix_cached
 from ccjax.io.preview import srgb_preview as srgb_preview
 from ccjax.io.preview import write_preview as write_preview
+from ccjax.io.reading import CLIP_FRACTION as CLIP_FRACTION
 from ccjax.io.reading import IMAGE_SUFFIXES as IMAGE_SUFFIXES
 from ccjax.io.reading import RAW_SUFFIXES as RAW_SUFFIXES
 from ccjax.io.reading import ImageInfo as ImageInfo
@@ -25,6 +27,7 @@ from ccjax.io.reading import LinearImage as LinearImage
 from ccjax.io.reading import list_images as list_images
 from ccjax.io.reading import probe_image as probe_image
 from ccjax.io.reading import read_image as read_image
+from ccjax.io.reading import read_mask as read_mask
 from ccjax.io.writing import quantise as quantise
 from ccjax.io.writing import write_dataset as write_dataset
 from ccjax.io.writing import write_linear as write_linear

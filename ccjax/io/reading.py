@@ -1,16 +1,28 @@
 """Reading linear camera images (Barnard 1999 §2.7, §4.6): 16-bit PNG, TIFF, camera raw.
 
-:func:`read_image` subtracts the black level, divides by ``saturation - black`` (so the sensor's
-full well is 1.0) and marks clipped pixels (any channel at or above the saturation level; the
-thesis discards them, §2.7). 8-bit files are refused unless ``assume_linear``: they are almost
-always gamma-encoded, and estimating on gamma-encoded data is silently wrong.
+:func:`read_image` subtracts the black level and divides by ``saturation - black``: on the unit
+scale, **1.0 is the saturation level** (default: the file format's maximum, 65535 for 16-bit; for
+raw files LibRaw's white level), so a corrected image written back with
+:func:`ccjax.io.write_linear` keeps the file's codes. This is the image counterpart of the
+library's scale (DESIGN.md §2: the brightest channel of a perfect white under the light is 1.0
+for synthetic data); an image's white is wherever the exposure put it, below 1.0.
+
+Clipped pixels (the thesis discards them, §2.7) are those with any channel at or above the
+*clip level*: by default :data:`CLIP_FRACTION` = 0.98 of the saturation level (the file
+maximum; the field's protocol for linear photographs: a sensor's response flattens, and
+demosaicing and noise smear saturation, below the file's last code, so pixels at the maximum
+alone miss most clipped ones), or exactly the ``saturation`` value when the caller gives one (the
+caller then knows the level).
+8-bit files are refused unless ``assume_linear``: they are almost always gamma-encoded, and
+estimating on gamma-encoded data is silently wrong.
 
 Alpha (RGBA PNG, RGB + extra-sample TIFF) is a mask: a pixel whose alpha is below full opacity
 (the format's maximum: 255, 65535, or 1.0 for float) is *transparent* and is marked in ``clipped``
 too, so no estimator or preprocessing step uses it (partly transparent pixels are excluded as well:
-their colour is blended, or premultiplied in associated-alpha TIFFs). :func:`probe_image` checks a
-file's format, bit depth, channels and size from its header alone, so a command can validate
-every input before any work and then decode each file once.
+their colour is blended, or premultiplied in associated-alpha TIFFs). :func:`read_mask` reads a
+separate mask file (nonzero = usable). :func:`probe_image` checks a file's format, bit depth,
+channels and size from its header alone, so a command can validate every input before any work
+and then decode each file once.
 """
 
 from __future__ import annotations
@@ -27,17 +39,19 @@ from ccjax.io.png import png_header, read_png
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *RAW_SUFFIXES)
 
-_RAW_CLIP = 0.999  # LibRaw's scaled white level can round down by a code or two
+CLIP_FRACTION = 0.98
+"""Default clip level as a fraction of the saturation level (module docstring)."""
 
 
 @dataclass(frozen=True)
 class LinearImage:
-    """A linear camera image on the unit scale (the saturation level is 1.0).
+    """A linear camera image on the unit scale (the saturation level is 1.0; module docstring).
 
     Attributes:
         rgb: ``(H, W, 3)`` float32, black level subtracted, divided by ``saturation - black``.
-        clipped: ``(H, W)`` True where a pixel is not usable: any channel reached the saturation
-            level, or the pixel is transparent (every consumer masks with ``~clipped``).
+        clipped: ``(H, W)`` True where a pixel is not usable: any channel reached the clip level
+            (default 0.98 of saturation), or the pixel is transparent (every consumer masks with
+            ``~clipped``; :func:`ccjax.preprocessing.usable_pixels` adds the zero-channel and dark rules).
         path: where it came from.
         bit_depth: 8 or 16 for integer files, 32/64 for float TIFF, 16 for raw.
         transparent: ``(H, W)`` True where the file's alpha is below full opacity (these pixels
@@ -229,9 +243,10 @@ def read_image(
         path: the file.
         black_level: value of a black pixel in file units (subtracted). Raw files: LibRaw applies
             the camera's own black and white levels.
-        saturation: file value at which the sensor saturates (default: the format's maximum, 65535
-            for 16-bit, 255 for 8-bit, 1.0 for float TIFF); pixels with any channel at or above it
-            are marked clipped.
+        saturation: file value at which the sensor saturates, 1.0 on the unit scale (default:
+            the format's maximum, 65535 for 16-bit, 255 for 8-bit, 1.0 for float TIFF, LibRaw's
+            white level for raw). Given, pixels with any channel at or above it are clipped;
+            by default those with any channel at or above :data:`CLIP_FRACTION` (0.98) of it.
         assume_linear: accept 8-bit files as linear data (otherwise they are refused).
 
     Returns:
@@ -249,7 +264,7 @@ def read_image(
     try:
         if path.suffix.lower() in RAW_SUFFIXES:
             # LibRaw has subtracted the black level and scaled the white level to 65535 (give or
-            # take its rounding: a saturated pixel comes out as 65534, see _RAW_CLIP).
+            # take its rounding: a saturated pixel can come out as 65534, well above the clip level).
             pixels, black_level, default_saturation = _read_raw(path), 0.0, 65535.0
         else:
             pixels = _read_pixels(path)
@@ -264,22 +279,80 @@ def read_image(
     level = float(saturation if saturation is not None else default_saturation or full_scale)
     if not level > black_level:
         raise ValueError(f"saturation: {level} must be above the black level {black_level}")
-    values = pixels.astype(np.float32)
-    if not np.all(np.isfinite(values)):
+    if np.issubdtype(pixels.dtype, np.floating) and not np.all(np.isfinite(pixels)):
         raise ValueError(f"image: {path} contains NaN or infinite values")
-    clip_level = level * (_RAW_CLIP if default_saturation is not None and saturation is None else 1.0)
-    clipped = np.any(values >= clip_level, axis=-1)
+    clip_level = level * (CLIP_FRACTION if saturation is None else 1.0)
+    # On the file's own codes, channel by channel: (H, W) booleans only (48-MP images).
+    clipped = pixels[..., 0] >= clip_level
+    clipped |= pixels[..., 1] >= clip_level
+    clipped |= pixels[..., 2] >= clip_level
     if transparent is not None:
         if np.all(transparent):
             raise ValueError(f"image: every pixel of {path} is transparent (alpha below full opacity)")
         clipped |= transparent
     if np.all(clipped):
         raise ValueError(
-            f"image: every pixel of {path} is clipped (a channel at or above the saturation level {level:g}"
+            f"image: every pixel of {path} is clipped (a channel at or above the clip level {clip_level:g}"
             + (", or transparent)" if transparent is not None else ")")
         )
-    rgb = np.maximum(values - np.float32(black_level), 0.0) / np.float32(level - black_level)
+    # One float32 copy, scaled in place: the file's codes and this copy are the only full-size arrays.
+    rgb = pixels.astype(np.float32)
+    del pixels
+    if black_level:
+        rgb -= np.float32(black_level)
+    np.maximum(rgb, 0.0, out=rgb)
+    rgb /= np.float32(level - black_level)
     return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth, transparent=transparent)
+
+
+MASK_SUFFIXES = (".png", ".tif", ".tiff")
+
+
+def read_mask(path: str | os.PathLike, shape: tuple[int, ...]) -> np.ndarray:
+    """Read a pixel mask file: which pixels of an image an estimator may use.
+
+    For data sets that ship masks (e.g. one excluding the colour checker that gave the ground
+    truth). A pixel is usable where the mask is nonzero and excluded where it is zero: in an RGB
+    mask, excluded where every colour channel is zero (black); an alpha channel is ignored.
+
+    Arguments:
+        path: an 8- or 16-bit PNG or TIFF (1-bit and float TIFF too), greyscale or RGB, with or
+            without alpha.
+        shape: the image's ``(height, width)`` (e.g. ``LinearImage.shape``); extra trailing
+            entries (``(H, W, 3)``) are ignored.
+
+    Returns:
+        ``(H, W)`` bool, True where usable (pass it as ``mask=`` to
+        :func:`ccjax.preprocessing.prepare`).
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ValueError: unreadable, not PNG/TIFF, or its size differs from ``shape``; the message
+            names the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"mask: no such file: {path}")
+    if path.suffix.lower() not in MASK_SUFFIXES:
+        raise ValueError(f"mask: {path}: unsupported file type {path.suffix!r}; expected .png, .tif or .tiff")
+    try:
+        pixels = _read_pixels(path)
+    except ValueError as error:
+        raise ValueError(f"mask: cannot read {path}: {error}") from None
+    except Exception as error:  # a decoder's own exception types: report them the same way
+        raise ValueError(f"mask: cannot read {path}: {type(error).__name__}: {error}") from None
+    if pixels.ndim == 3 and pixels.shape[2] in (2, 4):
+        pixels = pixels[..., : pixels.shape[2] - 1]  # drop alpha
+    if pixels.ndim not in (2, 3) or (pixels.ndim == 3 and pixels.shape[2] not in (1, 3)):
+        raise ValueError(f"mask: {path} has shape {pixels.shape}; expected greyscale (H, W) or RGB (H, W, 3)")
+    want = tuple(int(n) for n in shape[:2])
+    if pixels.shape[:2] != want:
+        raise ValueError(
+            f"mask: {path} is {pixels.shape[1]}x{pixels.shape[0]} pixels (width x height), but its image is "
+            f"{want[1]}x{want[0]}"
+        )
+    usable = pixels != 0
+    return usable.any(axis=-1) if usable.ndim == 3 else usable
 
 
 def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
