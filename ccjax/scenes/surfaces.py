@@ -3,8 +3,17 @@
 A scene is ``P`` surfaces drawn without replacement from the world's reflectances under one
 illuminant drawn from the **test** set; each surface gives one RGB. Options reproduce the thesis'
 experiments: specularities (each surface specular with probability 0.25, adding ``U(0, 2)`` times a
-perfect white, §4.7 and ch. 8), clipping (pixels with any channel above the level are discarded,
-i.e. masked out) and shot noise (the chapter 3 noise model, variance ``a * rho + b``).
+perfect white, §4.7 and ch. 8), metallic highlights (:class:`Metallic`: probability 0.25, adding
+``U(0, 4)`` times a unit-mean metal spectrum, §8.3), fluorescent surfaces (:class:`Fluorescent`:
+each surface slot replaced by one of the fluorescent surfaces with probability 0.3, §7.3, A21),
+clipping (pixels with any channel above the level are discarded, i.e. masked out) and shot noise
+(the chapter 3 noise model, variance ``a * rho + b``).
+
+Metal and fluorescent colours come from :class:`SceneTables` built with
+``SceneTables.from_world(world, metals=..., fluorescent=...)``; the options only say how often
+and how strongly they occur, so they stay static (hashable) arguments of the jitted samplers.
+Their random draws come from keys folded off the scene key, so with the options off every scene
+is exactly what it was before they existed.
 
 Everything after the per-world tables is a pure function of a PRNG key, so scenes are reproducible
 and batches are generated with ``jax.vmap`` over per-scene keys: a sweep gives the same scenes
@@ -17,13 +26,15 @@ import math
 import operator
 from dataclasses import dataclass
 from functools import partial
-from typing import SupportsIndex
+from typing import Protocol, SupportsIndex, runtime_checkable
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float, Int, Key, PRNGKeyArray, UInt32
+import numpy as np
+from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, UInt32
 
+from ccjax.materials.metals import METAL_MAX_AMOUNT, METAL_PROBABILITY, METALS, metal_spectra
 from ccjax.world import World
 
 SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
@@ -31,6 +42,10 @@ SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
 
 # Floyd's algorithm costs O(P^2) per scene, Gumbel top-k O(S log P); switch where they cross.
 _FLOYD_MAX_SURFACES = 64
+# Streams folded off a scene key for the material options (never split from it: a split's
+# outputs depend on how many keys are asked for, so adding one would move every existing draw).
+_METAL_STREAM = 0x4D45  # "ME"
+_FLUORESCENT_STREAM = 0x464C  # "FL"
 
 
 class Scenes(eqx.Module):
@@ -76,6 +91,41 @@ class ShotNoise:
         _require_real(self.b, "ShotNoise.b", "a finite number >= 0", lambda v: v >= 0)
 
 
+@dataclass(frozen=True)
+class Metallic:
+    """Metallic highlights (Barnard 1999 §8.3; spec ch08-12 A11): each surface gets one with
+    ``probability``, adding ``U(0, max_amount)`` times a metal spectrum drawn uniformly from the
+    tables' metals (unit-mean spectra, so 4 is up to about four times a perfect white)."""
+
+    probability: float = METAL_PROBABILITY
+    max_amount: float = METAL_MAX_AMOUNT
+
+    def __post_init__(self):
+        _require_real(self.probability, "Metallic.probability", "a probability in [0, 1]", lambda v: 0 <= v <= 1)
+        _require_real(self.max_amount, "Metallic.max_amount", "a finite number >= 0", lambda v: v >= 0)
+
+
+@dataclass(frozen=True)
+class Fluorescent:
+    """Fluorescent surfaces (Barnard 1999 §7.3, "30 % of the randomly selected surfaces"; A21):
+    each surface slot independently becomes, with ``probability``, one of the tables' fluorescent
+    surfaces chosen uniformly (a surface may then occur twice in a scene: there are only nine)."""
+
+    probability: float = 0.3
+
+    def __post_init__(self):
+        _require_real(self.probability, "Fluorescent.probability", "a probability in [0, 1]", lambda v: 0 <= v <= 1)
+
+
+@runtime_checkable
+class RadianceModel(Protocol):
+    """Anything that gives the light leaving its surfaces under given lights, ``(..., 101) ->
+    (..., F, 101)``: :class:`ccjax.materials.FluorescentSurfaces` (the physical model) or
+    :class:`ccjax.materials.Characterisation` (the thesis' NNLS characterisation of them)."""
+
+    def radiance(self, illuminants: Float[ArrayLike, "*lights 101"]) -> Float[ArrayLike, "*lights F 101"]: ...
+
+
 def _require_real(value, name: str, expected: str, accept) -> None:
     """Raise a ``ValueError`` naming ``name`` unless ``value`` is a finite real number that ``accept``s."""
     if isinstance(value, bool) or (not isinstance(value, (int, float)) and not hasattr(value, "__float__")):
@@ -101,24 +151,83 @@ def require_count(value, name: str, low: int, high: int | None = None) -> int:
 
 
 class SceneTables(eqx.Module):
-    """Per-world response tables from which scenes are gathered (computed once per world)."""
+    """Per-world response tables from which scenes are gathered (computed once per world).
+
+    The metal and fluorescent tables are ``None`` unless :meth:`from_world` was asked for them.
+    """
 
     surface_rgb: Float[Array, "J S 3"]  # every reflectance under every test illuminant
     whites: Float[Array, "J 3"]
     canonical_rgb: Float[Array, "S 3"]
     canonical_white: Float[Array, " 3"]
+    metal_rgb: Float[Array, "J M 3"] | None = None  # every metal spectrum under every test illuminant
+    canonical_metal_rgb: Float[Array, "M 3"] | None = None
+    fluorescent_rgb: Float[Array, "J F 3"] | None = None  # every fluorescent surface under every test illuminant
+    canonical_fluorescent_rgb: Float[Array, "F 3"] | None = None
 
     @classmethod
-    def from_world(cls, world: World) -> SceneTables:
+    def from_world(
+        cls,
+        world: World,
+        *,
+        metals: Float[ArrayLike, "M 101"] | bool | None = None,
+        fluorescent: RadianceModel | None = None,
+    ) -> SceneTables:
+        """Tables of ``world`` under its test illuminants (and its canonical light).
+
+        Arguments:
+            world: the world.
+            metals: metal specular spectra ``(M, 101)`` for :class:`Metallic` highlights, or
+                ``True`` for :func:`ccjax.materials.metal_spectra` of all six metals (unit mean;
+                A11: grey metals included), or ``None``.
+            fluorescent: a :class:`RadianceModel` for :class:`Fluorescent` surfaces (e.g.
+                ``ccjax.materials.synthetic_fluorescent_surfaces()`` or its
+                ``characterise(...)``), or ``None``.
+
+        Returns:
+            :class:`SceneTables`.
+        """
         sensors = world.camera.sensors
         lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
         surface_rgb = jnp.einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
+        metal_rgb = canonical_metal_rgb = fluorescent_rgb = canonical_fluorescent_rgb = None
+        if metals is not None and metals is not False:
+            spectra = _metal_table(metals, sensors.dtype)
+            metal_rgb = jnp.einsum("ml,jlc->jmc", spectra, lit_sensors)
+            canonical_metal_rgb = (spectra * world.canonical) @ sensors
+        if fluorescent is not None:
+            if not isinstance(fluorescent, RadianceModel):
+                raise ValueError(
+                    "fluorescent: expected a model with a radiance(illuminants) method, "
+                    f"got {type(fluorescent).__name__}"
+                )
+            lights = jnp.concatenate([world.test_illuminants, world.canonical[None]])
+            signals = jnp.asarray(fluorescent.radiance(lights), dtype=sensors.dtype)  # (J + 1, F, 101)
+            if signals.ndim != 3 or signals.shape[0] != lights.shape[0] or signals.shape[-1] != lights.shape[-1]:
+                raise ValueError(f"fluorescent: radiance of {lights.shape} lights has shape {signals.shape}")
+            if not bool(jnp.all(jnp.isfinite(signals))) or bool(jnp.any(signals < 0)):
+                raise ValueError("fluorescent: radiance contains negative or non-finite values")
+            responses = signals @ sensors
+            fluorescent_rgb, canonical_fluorescent_rgb = responses[:-1], responses[-1]
         return cls(
             surface_rgb=surface_rgb,
             whites=world.test_whites,
             canonical_rgb=world.canonical_rgb,
             canonical_white=world.canonical_white,
+            metal_rgb=metal_rgb,
+            canonical_metal_rgb=canonical_metal_rgb,
+            fluorescent_rgb=fluorescent_rgb,
+            canonical_fluorescent_rgb=canonical_fluorescent_rgb,
         )
+
+
+def _metal_table(metals, dtype) -> Float[Array, "M 101"]:
+    spectra = metal_spectra(METALS) if metals is True else np.asarray(metals, dtype=np.float64)
+    if spectra.ndim != 2 or spectra.shape[0] < 1 or spectra.shape[1] != 101:
+        raise ValueError(f"metals: expected True or spectra of shape (M, 101) with M >= 1, got {spectra.shape}")
+    if not np.all(np.isfinite(spectra)) or np.any(spectra < 0):
+        raise ValueError("metals: spectra contain negative or non-finite values")
+    return jnp.asarray(spectra, dtype=dtype)
 
 
 def draw_without_replacement(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, " P"]:
@@ -207,8 +316,17 @@ def sample_one(
     specular: Specular | None = None,
     noise: ShotNoise | None = None,
     clip: float | None = None,
+    metallic: Metallic | None = None,
+    fluorescent: Fluorescent | None = None,
 ) -> Scenes:
-    """One scene from a per-scene key (fields without the batch axis); vmap it for batches."""
+    """One scene from a per-scene key (fields without the batch axis); vmap it for batches.
+
+    Order of the recipe: fluorescent surfaces replace drawn reflectances (both under the scene
+    light and under the canonical one), then dielectric and metallic highlights are added, then
+    noise, then clipping. ``metallic`` needs ``tables.metal_rgb``, ``fluorescent``
+    ``tables.fluorescent_rgb`` (see :meth:`SceneTables.from_world`).
+    """
+    _require_tables(tables, metallic, fluorescent)
     n_lights, n_reflectances, _ = tables.surface_rgb.shape
     drawn = draw_scene(key, n_lights, n_reflectances, n_surfaces)
     light, surfaces = drawn.light, drawn.surfaces
@@ -216,11 +334,27 @@ def sample_one(
     white = tables.whites[light]
     rgb = tables.surface_rgb[light, surfaces]
     canonical = tables.canonical_rgb[surfaces]
+    if fluorescent is not None:
+        assert tables.fluorescent_rgb is not None and tables.canonical_fluorescent_rgb is not None
+        key_which, key_identity = jax.random.split(jax.random.fold_in(key, _FLUORESCENT_STREAM))
+        is_fluorescent = jax.random.uniform(key_which, (n_surfaces,)) < fluorescent.probability
+        identity = jax.random.randint(key_identity, (n_surfaces,), 0, tables.fluorescent_rgb.shape[1])
+        rgb = jnp.where(is_fluorescent[:, None], tables.fluorescent_rgb[light, identity], rgb)
+        canonical = jnp.where(is_fluorescent[:, None], tables.canonical_fluorescent_rgb[identity], canonical)
     if specular is not None:
         is_specular = jax.random.uniform(key_spec, (n_surfaces,)) < specular.probability
         amount = jnp.where(is_specular, jax.random.uniform(key_amount, (n_surfaces,)) * specular.max_amount, 0.0)
         rgb = rgb + amount[:, None] * white
         canonical = canonical + amount[:, None] * tables.canonical_white
+    if metallic is not None:
+        # §8.3 / A11: S' = S + s M, s ~ U(0, max_amount), M uniform over the tables' metals.
+        assert tables.metal_rgb is not None and tables.canonical_metal_rgb is not None
+        key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, _METAL_STREAM), 3)
+        is_metal = jax.random.uniform(key_which, (n_surfaces,)) < metallic.probability
+        metal = jax.random.randint(key_metal, (n_surfaces,), 0, tables.metal_rgb.shape[1])
+        strength = jnp.where(is_metal, jax.random.uniform(key_strength, (n_surfaces,)) * metallic.max_amount, 0.0)
+        rgb = rgb + strength[:, None] * tables.metal_rgb[light, metal]
+        canonical = canonical + strength[:, None] * tables.canonical_metal_rgb[metal]
     if noise is not None:
         sigma = jnp.sqrt(noise.a * rgb + noise.b)
         rgb = jnp.maximum(rgb + sigma * jax.random.normal(key_noise, rgb.shape), 0.0)
@@ -230,7 +364,19 @@ def sample_one(
     return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
 
 
-@partial(jax.jit, static_argnames=("n_surfaces", "specular", "noise", "clip"))
+def _require_tables(tables: SceneTables, metallic: Metallic | None, fluorescent: Fluorescent | None) -> None:
+    if metallic is not None and tables.metal_rgb is None:
+        raise ValueError(
+            "metallic: the scene tables have no metals; build them with SceneTables.from_world(world, metals=True)"
+        )
+    if fluorescent is not None and tables.fluorescent_rgb is None:
+        raise ValueError(
+            "fluorescent: the scene tables have no fluorescent surfaces; build them with "
+            "SceneTables.from_world(world, fluorescent=model)"
+        )
+
+
+@partial(jax.jit, static_argnames=("n_surfaces", "specular", "noise", "clip", "metallic", "fluorescent"))
 def sample_batch(
     keys: SceneKeys,
     tables: SceneTables,
@@ -238,9 +384,11 @@ def sample_batch(
     specular: Specular | None = None,
     noise: ShotNoise | None = None,
     clip: float | None = None,
+    metallic: Metallic | None = None,
+    fluorescent: Fluorescent | None = None,
 ) -> Scenes:
     """Scenes for a batch of per-scene keys ``(B,)`` (the sweep engine's entry point)."""
-    return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip))(keys)
+    return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip, metallic, fluorescent))(keys)
 
 
 def scene_keys(key: PRNGKeyArray, start: int, count: int) -> SceneKeys:
@@ -273,6 +421,10 @@ def sample(
     specular: Specular | bool | None = None,
     noise: ShotNoise | bool | None = None,
     clip: float | None = None,
+    metallic: Metallic | bool | None = None,
+    fluorescent: Fluorescent | bool | None = None,
+    metals: Float[ArrayLike, "M 101"] | None = None,
+    fluorescent_surfaces: RadianceModel | None = None,
 ) -> Scenes:
     """Draw a batch of synthetic scenes (Barnard 1999 §4.7).
 
@@ -286,6 +438,15 @@ def sample(
         noise: ``True`` for the chapter 3 model with defaults, or a :class:`ShotNoise`.
         clip: clip level on the unit scale (thesis levels 250, 300, 400 are ``250/255`` ...);
             surfaces with any channel above it are masked out.
+        metallic: ``True`` for the §8.3 recipe (:class:`Metallic` defaults: p = 0.25, ``U(0, 4)``)
+            or a :class:`Metallic`.
+        fluorescent: ``True`` for the §7.3 recipe (:class:`Fluorescent` default: p = 0.3) or a
+            :class:`Fluorescent`.
+        metals: metal spectra ``(M, 101)`` of the highlights (default: all six unit-mean metals of
+            :func:`ccjax.materials.metal_spectra`).
+        fluorescent_surfaces: the :class:`RadianceModel` of the fluorescent surfaces (default:
+            the nine synthetic surfaces' physical model,
+            :func:`ccjax.materials.synthetic_fluorescent_surfaces`).
 
     Returns:
         :class:`Scenes` with batch size ``n_scenes``.
@@ -294,8 +455,33 @@ def sample(
     n_scenes = require_count(n_scenes, "n_scenes", 1)
     n_surfaces = require_count(n_surfaces, "n_surfaces", 1, n_reflectances)
     specular, noise = resolve_options(specular, noise, clip)
-    tables = SceneTables.from_world(world)
-    return sample_batch(scene_keys(key, 0, n_scenes), tables, n_surfaces, specular, noise, clip)
+    metallic, fluorescent = resolve_materials(metallic, fluorescent)
+    tables = SceneTables.from_world(
+        world,
+        metals=(True if metals is None else metals) if metallic is not None else None,
+        fluorescent=_default_fluorescent(fluorescent_surfaces) if fluorescent is not None else None,
+    )
+    keys = scene_keys(key, 0, n_scenes)
+    return sample_batch(keys, tables, n_surfaces, specular, noise, clip, metallic, fluorescent)
+
+
+def _default_fluorescent(model: RadianceModel | None) -> RadianceModel:
+    if model is not None:
+        return model
+    from ccjax.materials.fluorescence import synthetic_fluorescent_surfaces
+
+    return synthetic_fluorescent_surfaces()
+
+
+def resolve_materials(metallic, fluorescent) -> tuple[Metallic | None, Fluorescent | None]:
+    """Validate and normalise the material options (``True`` -> the thesis recipe)."""
+    metallic = Metallic() if metallic is True else (metallic or None)
+    fluorescent = Fluorescent() if fluorescent is True else (fluorescent or None)
+    if metallic is not None and not isinstance(metallic, Metallic):
+        raise ValueError(f"metallic: expected True, None or a Metallic, got {metallic!r}")
+    if fluorescent is not None and not isinstance(fluorescent, Fluorescent):
+        raise ValueError(f"fluorescent: expected True, None or a Fluorescent, got {fluorescent!r}")
+    return metallic, fluorescent
 
 
 def resolve_options(specular, noise, clip) -> tuple[Specular | None, ShotNoise | None]:
