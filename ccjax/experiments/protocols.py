@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import jax
 import numpy as np
 
+from ccjax.estimators import registry
 from ccjax.experiments.reports import Column, Report
 from ccjax.experiments.sweeps import RGB_VALUED, STATISTICS, is_registered, sweep
 from ccjax.world import World
@@ -26,6 +27,8 @@ class Condition:
         n_surfaces: surfaces per scene.
         columns: table column -> per-scene statistic (one of :data:`STATISTICS`).
         specular, noise, clip: scene options (clip on ccjax's unit scale).
+        scene_options: further scene options passed to the sweep by name (metallic highlights,
+            fluorescent surfaces), as ``(name, value)`` pairs so the condition stays hashable.
     """
 
     n_surfaces: int
@@ -33,10 +36,29 @@ class Condition:
     specular: object = None
     noise: object = None
     clip: float | None = None
+    scene_options: tuple = ()
 
 
 BASIC_COLUMNS = {name: name for name in STATISTICS}
 """The columns of Tables 4.2 and 4.3: every statistic under its own name."""
+
+CLIP_300 = 300 / 255.0
+"""Chapter 8's clip level (300 in thesis units; Table 8.2 column 3 equals Table 4.4's 300 column)."""
+
+
+def _chapter8_conditions(statistic: str) -> list[Condition]:
+    """Tables 8.2 / 8.3's five conditions (§8.3), one statistic each: matte; dielectric
+    specularities; the same clipped at 300; metallic specularities (25 %, ``U(0, 4)`` x a metal
+    spectrum drawn from every metal, A11); the same clipped."""
+    metallic = (("metallic", True),)
+    return [
+        Condition(8, {f"{statistic}@matte": statistic}),
+        Condition(8, {f"{statistic}@specular": statistic}, specular=True),
+        Condition(8, {f"{statistic}@specular+clip": statistic}, specular=True, clip=CLIP_300),
+        Condition(8, {f"{statistic}@metallic": statistic}, scene_options=metallic),
+        Condition(8, {f"{statistic}@metallic+clip": statistic}, clip=CLIP_300, scene_options=metallic),
+    ]
+
 
 PROTOCOLS: dict[str, list[Condition]] = {
     # Table 4.2: 8 matte surfaces (§4.7).
@@ -50,6 +72,19 @@ PROTOCOLS: dict[str, list[Condition]] = {
     ],
     # Table 6.1 (§6.3): matte scenes of 4, 8 and 16 surfaces, rg only.
     "6.1": [Condition(n, {f"rg@{n}": "rg"}) for n in (4, 8, 16)],
+    # Table 7.2 (§7.3): 4 and 8 surfaces, matte, then each surface fluorescent with p = 0.3 (A21).
+    "7.2": [
+        condition
+        for n in (4, 8)
+        for condition in (
+            Condition(n, {f"rg@{n}": "rg"}),
+            Condition(n, {f"rg@{n}+FL": "rg"}, scene_options=(("fluorescent", True),)),
+        )
+    ],
+    # Tables 8.2 and 8.3 (§8.3): 8 surfaces under five conditions; the first three are exactly
+    # Table 4.2's, 4.3's and 4.4's (clip 300) sweeps, so the same key gives the same scenes.
+    "8.2": _chapter8_conditions("rg"),
+    "8.3": _chapter8_conditions("brightness"),
     # Table 10.1 (§10.3): 8 surfaces, matte and specular worlds (rg only; fluorescent column later).
     "10.1": [Condition(8, {"rg@matte": "rg"}), Condition(8, {"rg@specular": "rg"}, specular=True)],
     # Table 10.2 (§10.3): 8 matte surfaces.
@@ -89,8 +124,23 @@ class Reproduction:
             if any(row.get("sampling_error") is not None for row in self.rows):
                 footer.append("s.e.: standard error of ours over the scenes (delta method for the RMS)")
         footer.extend(f"ordering: {line}" for line in self.orderings())
+        footer.extend(f"check: {line}" for line in self.checks())
         title = [f"Table {self.table}: ours vs thesis (RGB-valued errors in thesis units, white = 255)"]
         return Report(self.rows, REPRODUCTION_COLUMNS, metadata={"table": self.table}, title=title, footer=footer)
+
+    def checks(self) -> list[str]:
+        """The thesis' claims on this table (``thesis.CHECKS``: pairs, ratios, best rows, spreads),
+        each checked on our values and marked ``ok`` or ``MISS``; claims whose cells were not run
+        are left out."""
+        from ccjax import thesis
+
+        ours = {(row["method"], row["column"]): row["ours"] for row in self.rows}
+        lines = []
+        for claim in thesis.CHECKS.get(self.table, []):
+            line = check_claim(claim, ours)
+            if line is not None:
+                lines.append(line)
+        return lines
 
     def to_json(self) -> str:
         return self.report().to_json()
@@ -112,6 +162,48 @@ class Reproduction:
                 a, b = ours[(better, column)], ours[(worse, column)]
                 lines.append(f"{better} {a:.4g} < {worse} {b:.4g} at {column}: {'holds' if a < b else 'FAILS'}")
         return lines
+
+
+def check_claim(claim: tuple, ours: dict) -> str | None:
+    """One claim of ``thesis.CHECKS`` on ``ours`` (``(method, column) -> value``): a line ending
+    in ``ok`` or ``MISS``, or ``None`` when a cell it needs is missing.
+
+    Kinds: ``("less", a, b, column)``; ``("ratio", a, b, column, f)`` (``a <= f b``); ``("best",
+    rows, "gamut", column)`` (every row of ``rows`` beats every other gamut-mapping row run);
+    ``("spread", a, columns, low, high)`` (``low <= max / min <= high`` over the columns).
+    """
+    kind = claim[0]
+    mark = lambda holds: "ok" if holds else "MISS"
+    if kind in ("less", "ratio"):
+        a, b, column = claim[1:4]
+        if (a, column) not in ours or (b, column) not in ours:
+            return None
+        x, y = ours[(a, column)], ours[(b, column)]
+        if kind == "less":
+            return f"{a} {x:.4g} < {b} {y:.4g} at {column}: {mark(x < y)}"
+        factor = claim[4]
+        return f"{a} {x:.4g} <= {factor:g} x {b} {y:.4g} (ratio {x / y:.3f}) at {column}: {mark(x <= factor * y)}"
+    if kind == "best":
+        rows, _, column = claim[1:4]
+        if any((r, column) not in ours for r in rows):
+            return None
+        others = {m: v for (m, c), v in ours.items() if c == column and "CRULE" in m and m not in rows}
+        if not others:
+            return None
+        rival = min(others, key=others.__getitem__)
+        worst = max(rows, key=lambda r: ours[(r, column)])
+        holds = ours[(worst, column)] < others[rival]
+        named = " and ".join(f"{r} {ours[(r, column)]:.4g}" for r in rows)
+        return f"{named} best gamut row(s) at {column} (next {rival} {others[rival]:.4g}): {mark(holds)}"
+    if kind == "spread":
+        a, columns, low, high = claim[1:5]
+        if any((a, c) not in ours for c in columns):
+            return None
+        values = [ours[(a, c)] for c in columns]
+        ratio = max(values) / min(values)
+        bound = f"in [{low:g}, {high:g}]" if np.isfinite(high) else f">= {low:g}"
+        return f"{a} max/min over the {len(columns)} columns {ratio:.2f} {bound}: {mark(low <= ratio <= high)}"
+    raise ValueError(f"claim: unknown kind {kind!r}")
 
 
 def reproduce(
@@ -147,11 +239,13 @@ def reproduce(
     unknown = [m for m in methods if m not in targets]
     if unknown:
         raise ValueError(f"methods: {unknown} are not rows of Table {table}")
+    # Fit once for all conditions (the registry's in-process memo).
+    fitted = [(method, registry.fit_cached(method, world)) for method in methods]
     rows = []
     for condition in PROTOCOLS[table]:
         result = sweep(
             world,
-            list(methods),
+            fitted,
             [condition.n_surfaces],
             n_scenes,
             key,
@@ -159,6 +253,7 @@ def reproduce(
             noise=condition.noise,
             clip=condition.clip,
             progress=progress,
+            **dict(condition.scene_options),
         )
         for method in methods:
             for column, statistic in condition.columns.items():

@@ -1,18 +1,23 @@
-"""3-D gamut mapping: CRULE / ECRULE (and ND) with MV, AVE, ICA and SCWIA-N (Barnard 1999 §2.3.4,
-§4.5.3, ch. 6), computed by illuminant-direction integration.
+"""3-D gamut mapping: CRULE / ECRULE with MV, AVE, ICA and SCWIA-N (Barnard 1999 §2.3.4, §4.5.3,
+ch. 6) on the matte canonical gamut or its extensions (ND §6.1, FL ch. 7, SP and MET §8.2, combined
+as in ch. 9), computed by illuminant-direction integration.
 
 Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``, and the
-differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``, ``margin``).
+differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``, ``margin``);
+``(SP|MET)[k]-[ND-|FL-]BASE-SELECTOR`` and ``FL-BASE-SELECTOR`` (``k``: the specular multiplier,
+8 by default; :mod:`.extensions`).
 """
 
 from ccjax.estimators.gamut.constraints_3d import Grid, evaluate
 from ccjax.estimators.gamut.engine import GridOptions
+from ccjax.estimators.gamut.extensions import Extension
 from ccjax.estimators.gamut.geometry import Facets, cone_planes, gamut_facets, nd_points
 from ccjax.estimators.gamut.model import GamutMapping, GamutModel, estimate_all, fit
 from ccjax.estimators.gamut.selectors import select
 from ccjax.estimators.gamut.soft import SoftGamutMapping
 
 __all__ = [
+    "Extension",
     "Facets",
     "GamutMapping",
     "GamutModel",
@@ -38,7 +43,10 @@ _SOFT_OPTIONS = ("tau", "kappa", "beta", "margin")
 
 
 def _build(world, match, **options):
-    extension = "ND" if match["nd"] else None
+    groups = match.groupdict()
+    extension = Extension.parse(
+        tuple(groups[name].rstrip("-") for name in ("specular", "diagonal", "nd") if groups.get(name) is not None)
+    )
     selector, power = match["selector"], 12.0
     if selector.startswith("SCWIA"):
         selector, power = "SCWIA", float(match["power"])
@@ -53,7 +61,8 @@ def _build(world, match, **options):
     return GamutMapping(model, selector, power)
 
 
-_LABEL = r"(?P<nd>ND-)?(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))"
+_BASE = r"(?P<base>CRULE|ECRULE)-(?P<selector>MV|AVE|ICA|SCWIA-(?P<power>\d+))"
+_LABEL = r"(?P<nd>ND-)?" + _BASE
 
 _register(
     _LABEL,
@@ -69,6 +78,22 @@ _register(
     grammar="soft-[ND-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N)",
     input_kind="surfaces",
     differentiable=True,
+)(_build)
+
+_register(
+    r"(?P<specular>(SP|MET)\d*-)(?P<diagonal>ND-|FL-)?" + _BASE,
+    "SP-ND-ECRULE-SCWIA-6",
+    "3-D gamut mapping with specular (SP) or metallic (MET) canonical-gamut extensions, "
+    "optionally with ND or FL (§8.2, ch. 9)",
+    grammar="(SP|MET)[k]-[ND-|FL-](CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N)",
+    input_kind="surfaces",
+)(_build)
+_register(
+    r"(?P<diagonal>FL-)" + _BASE,
+    "FL-ECRULE-SCWIA-12",
+    "3-D gamut mapping with the fluorescent (FL) canonical gamut: ND with fluorescent surfaces (ch. 7)",
+    grammar="FL-(CRULE|ECRULE)-(MV|AVE|ICA|SCWIA-N)",
+    input_kind="surfaces",
 )(_build)
 
 # The 2-D family (its labels register on import) after the 3-D ones, so the registry lists them in

@@ -1,9 +1,10 @@
-"""Fitting gamut-mapping models and the Estimator that runs them (Barnard 1999 §4.5.3, ch. 6).
+"""Fitting gamut-mapping models and the Estimator that runs them (Barnard 1999 §4.5.3, ch. 6-9).
 
-``fit(world, constraint=..., extension=...)`` computes, once, with Qhull: the canonical gamut
-(or its ND extension) as fixed-size facet arrays, the cone of the training illuminants
-(ECRULE's illumination constraint) and the cone of their map directions (its convex
-approximation), and the domain of illuminant directions the locating stage starts from. The per-scene work is
+``fit(world, constraint=..., extension=...)`` computes, once, with Qhull: the canonical gamut (or
+its extension: ND, FL, SP, MET and their combinations, :mod:`.extensions`) as fixed-size facet
+arrays, the cone of the training illuminants (ECRULE's illumination constraint) and the cone of
+their map directions (its convex approximation), and the domain of illuminant directions the
+locating stage starts from. The per-scene work is
 :func:`~ccjax.estimators.gamut.constraints_3d.evaluate` followed by a selector.
 """
 
@@ -18,14 +19,13 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_numpy
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
-from ccjax.estimators.gamut import geometry
+from ccjax.estimators.gamut import extensions, geometry
 from ccjax.estimators.gamut.constraints_3d import evaluate
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.estimators.gamut.selectors import SELECTORS, select
 from ccjax.world import World
 
 CONSTRAINTS = ("CRULE", "ECRULE")
-EXTENSIONS = (None, "ND")
 # ECRULE's domain of directions extends this far beyond its illumination constraints, so relaxed
 # (widened) constraints still find directions.
 _ECRULE_MARGIN = 0.06
@@ -44,7 +44,8 @@ class GamutModel(eqx.Module):
             from (CRULE: the whole chromaticity triangle; ECRULE: the illumination constraints'
             box with a margin).
         fallback: ``(3,)`` returned (with ``ok=False``) when no solution exists at any level.
-        constraint, extension, options: static configuration.
+        constraint, extension, options: static configuration; ``extension`` is the label prefix
+            of the canonical gamut's extensions (``None``, ``"ND"``, ``"SP-FL"``, ...).
     """
 
     white: Float[Array, "3"]
@@ -60,25 +61,32 @@ class GamutModel(eqx.Module):
     options: GridOptions = eqx.field(static=True)
 
 
-def canonical_points(world: World, extension: str | None) -> np.ndarray:
+def canonical_points(
+    world: World,
+    extension: extensions.Extension | str | tuple | None,
+    *,
+    metals: np.ndarray | None = None,
+    fluorescent: extensions.FluorescentResponses | None = None,
+) -> np.ndarray:
     """The points whose hull (with the origin) is the canonical gamut: the database under the
-    canonical light, or for ND also every training illuminant's white-balanced database (§6.1)."""
-    if extension is None:
-        return np.asarray(world.canonical_rgb, np.float64)
-    return geometry.nd_points(
-        np.asarray(world.reflectances),
-        np.asarray(world.camera.sensors),
-        np.asarray(world.train_illuminants),
-        np.asarray(world.canonical),
-    )
+    canonical light, for ND/FL also every training illuminant's white-balanced database (§6.1),
+    plus the FL/SP/MET points (:func:`ccjax.estimators.gamut.extensions.points`)."""
+    extension = extensions.Extension.parse(extension)
+    if extension.specular == "MET" and metals is None:
+        metals = extensions.default_metals()
+    if extension.diagonal == "FL" and fluorescent is None:
+        fluorescent = extensions.default_fluorescent(world)
+    return extensions.points(world, extension, metals=metals, fluorescent=fluorescent)
 
 
 def fit(
     world: World,
     *,
     constraint: str = "ECRULE",
-    extension: str | None = None,
+    extension: extensions.Extension | str | tuple | None = None,
     options: GridOptions | None = None,
+    metals: np.ndarray | None = None,
+    fluorescent: extensions.FluorescentResponses | None = None,
 ) -> GamutModel:
     """Fit a gamut-mapping model to a world.
 
@@ -86,20 +94,27 @@ def fit(
         world: supplies the reflectances, canonical light, training illuminants and camera.
         constraint: ``"CRULE"`` (surface constraints only, Forsyth) or ``"ECRULE"`` (plus the
             training-illuminant constraint, Finlayson).
-        extension: ``None`` or ``"ND"`` (canonical gamut extended for diagonal-model failure, §6.1).
+        extension: the canonical gamut's extensions: ``None``; ``"ND"`` (diagonal-model failure,
+            §6.1); ``"FL"`` (ND with fluorescent surfaces, ch. 7); ``"SP"`` (specular white
+            points, §8.2), ``"MET"`` (SP plus coloured-metal specular points); combinations such
+            as ``"SP-ND"``, ``("MET", "FL")``; ``"SP4"`` for a multiplier other than 8
+            (:class:`~ccjax.estimators.gamut.extensions.Extension`).
         options: grid sizes and budgets (:class:`GridOptions`).
+        metals: ``(M, 101)`` metal specular reflectances for MET (default: brass, copper, gold
+            from :mod:`ccjax.materials`, unit mean).
+        fluorescent: the fluorescent surfaces' responses for FL (default: the characterised
+            surfaces of :mod:`ccjax.materials`).
 
     Returns:
         A :class:`GamutModel` (float32 arrays).
     """
     if constraint not in CONSTRAINTS:
         raise ValueError(f"constraint: expected one of {CONSTRAINTS}, got {constraint!r}")
-    if extension not in EXTENSIONS:
-        raise ValueError(f"extension: expected one of {EXTENSIONS}, got {extension!r}")
+    extension = extensions.Extension.parse(extension)
     options = options or GridOptions()
     if not isinstance(options, GridOptions):
         raise ValueError(f"options: expected a GridOptions, got {type(options).__name__}")
-    facets = geometry.gamut_facets(canonical_points(world, extension))
+    facets = geometry.gamut_facets(canonical_points(world, extension, metals=metals, fluorescent=fluorescent))
     white = np.asarray(world.canonical_white, np.float64)
     whites = np.asarray(world.train_whites, np.float64)
     illuminant_planes = geometry.cone_planes(whites)
@@ -123,7 +138,7 @@ def fit(
         domain=f32(domain),
         fallback=f32(whites.mean(axis=0)),
         constraint=constraint,
-        extension=extension,
+        extension=extension.label,
         options=options,
     )
 
