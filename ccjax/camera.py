@@ -17,7 +17,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ccjax import data
-from ccjax.spectra import N_WAVELENGTHS
+from ccjax.spectra import N_WAVELENGTHS, as_spectra, is_colour_distribution, to_colour
 
 
 class Camera(eqx.Module):
@@ -41,8 +41,18 @@ class Camera(eqx.Module):
 
     @classmethod
     def from_array(cls, sensors, name: str = "custom") -> Camera:
-        """Build a camera from a ``(101, 3)`` array, validating it (finite, non-negative)."""
-        sensors = np.asarray(sensors, dtype=np.float64)
+        """Build a camera from sensor curves, validating them (finite, non-negative).
+
+        Arguments:
+            sensors: a ``(101, 3)`` array on :data:`ccjax.spectra.WAVELENGTHS` (R, G, B columns),
+                or a three-channel colour-science ``MultiSpectralDistributions`` (resampled as
+                sensor curves, zero outside their range).
+            name: a label for printing.
+
+        Returns:
+            The camera (float32 sensors).
+        """
+        sensors = as_spectra(sensors, kind="sensor", rows=False)
         if sensors.shape != (N_WAVELENGTHS, 3):
             raise ValueError(f"sensors: expected shape ({N_WAVELENGTHS}, 3), got {sensors.shape}")
         if not np.all(np.isfinite(sensors)):
@@ -54,6 +64,54 @@ class Camera(eqx.Module):
         return cls(sensors=jnp.asarray(sensors, dtype=jnp.float32), name=name)
 
     @classmethod
+    def from_colour(cls, sensitivities, name: str | None = None) -> Camera:
+        """A camera from colour-science camera sensitivities.
+
+        Arguments:
+            sensitivities: a ``colour.characterisation.RGB_CameraSensitivities`` (or any
+                ``MultiSpectralDistributions`` with three channels in R, G, B order), or the name of
+                one in ``colour.MSDS_CAMERA_SENSITIVITIES`` (e.g. ``"Nikon 5100 (NPL)"``). Resampled
+                onto the ccjax grid as sensor curves: linear interpolation, zero outside the
+                measured range.
+            name: a label (default: the distributions' name).
+
+        Returns:
+            The camera.
+        """
+        if isinstance(sensitivities, str):
+            import colour  # imported here: colour-science is slow to import
+
+            known = colour.MSDS_CAMERA_SENSITIVITIES
+            if sensitivities not in known:
+                raise ValueError(
+                    f"sensitivities: {sensitivities!r} is not in colour.MSDS_CAMERA_SENSITIVITIES "
+                    f"({', '.join(sorted(known))})"
+                )
+            sensitivities = known[sensitivities]
+        if not is_colour_distribution(sensitivities) or np.ndim(sensitivities.values) != 2:
+            raise TypeError(
+                "sensitivities: expected colour-science camera sensitivities (a MultiSpectralDistributions), "
+                f"got {type(sensitivities).__name__}"
+            )
+        if sensitivities.values.shape[1] != 3:
+            raise ValueError(f"sensitivities: expected 3 channels (R, G, B), got {sensitivities.values.shape[1]}")
+        return cls.from_array(sensitivities, name=name or sensitivities.name)
+
+    def to_colour(self):
+        """The sensor curves as ``colour.characterisation.RGB_CameraSensitivities`` on the ccjax grid
+        (extrapolated as zero outside 380–780 nm, as ccjax treats sensors).
+
+        Returns:
+            The colour-science camera sensitivities, labels ``red``, ``green``, ``blue``.
+        """
+        from colour.characterisation import RGB_CameraSensitivities
+
+        curves = to_colour(np.asarray(self.sensors, np.float64), kind="sensor", name=self.name)
+        return RGB_CameraSensitivities(
+            curves, labels=["red", "green", "blue"], name=self.name, extrapolator_kwargs=curves.extrapolator_kwargs
+        )
+
+    @classmethod
     def from_name(cls, name: str, data_dir: str | os.PathLike | None = None) -> Camera:
         """Look a camera up by name: embedded rawtoaces cameras first, then external data.
 
@@ -61,6 +119,9 @@ class Camera(eqx.Module):
             name: e.g. ``"Canon EOS 5D Mark II"`` (embedded), ``"Sony DXC-930"`` or
                 ``"Jiang: Canon 5D Mark II"`` (external data directory).
             data_dir: external data directory (see :func:`ccjax.data.find_data_file`).
+
+        Returns:
+            The camera. (colour-science's own cameras: :meth:`from_colour`.)
         """
         embedded = data.rawtoaces_cameras()
         if name in embedded:
@@ -78,7 +139,14 @@ class Camera(eqx.Module):
         )
 
     def response(self, signal: Float[ArrayLike, "... 101"]) -> Float[Array, "... 3"]:
-        """Linear camera response of colour signals (reflectance x illuminant), ``signal @ sensors``."""
+        """Linear camera response of colour signals (reflectance x illuminant), ``signal @ sensors``.
+
+        Arguments:
+            signal: ``(..., 101)`` colour signals on the grid.
+
+        Returns:
+            ``(..., 3)`` linear responses.
+        """
         return jnp.asarray(signal) @ self.sensors
 
 
@@ -86,6 +154,12 @@ def cameras(data_dir: str | os.PathLike | None = None) -> dict[str, str]:
     """Every camera ccjax can build, name -> source (``"embedded"`` or ``"external"``).
 
     External cameras are listed only when the external data directory is found.
+
+    Arguments:
+        data_dir: external data directory (see :func:`ccjax.data.find_data_file`).
+
+    Returns:
+        Name -> source.
     """
     listing = {name: "embedded (rawtoaces-data, Apache-2.0)" for name in data.rawtoaces_cameras()}
     try:

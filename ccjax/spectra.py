@@ -8,13 +8,31 @@ Loaders resample once, at load time:
   is taken to have no sensitivity there);
 * reflectances and illuminants **hold their edge values** (a spectrum is a physical quantity that
   does not drop to zero just because the instrument stopped).
+
+colour-science interoperation: :func:`from_colour` takes a ``colour.SpectralDistribution`` or
+``colour.MultiSpectralDistributions`` onto the grid by the same rule, with the kind an explicit
+argument (colour-science's own extrapolation is not used: its default holds edge values for every
+kind, which is wrong for a sensor), and :func:`to_colour` returns ccjax spectra as colour-science
+objects whose extrapolation follows the kind.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+import sys
+from typing import Any, Literal
 
 import numpy as np
+
+Kind = Literal["sensor", "reflectance", "light", "spectrum"]
+"""What a spectrum is, which fixes its values outside the measured range: ``"sensor"`` curves are
+zero there; ``"reflectance"``, ``"light"`` (and the generic ``"spectrum"``) hold their edge values."""
+
+KINDS: tuple[str, ...] = ("sensor", "reflectance", "light", "spectrum")
+
+SpectraLike = Any
+"""Spectra as a NumPy array on :data:`WAVELENGTHS` or as a colour-science ``SpectralDistribution`` /
+``MultiSpectralDistributions`` (converted by :func:`as_spectra`); ``Any`` to the type checkers,
+because colour-science is imported only when it is used."""
 
 WAVELENGTHS: np.ndarray = np.arange(380.0, 780.0 + 1e-9, 4.0)
 """The ccjax wavelength grid in nm: 380, 384, ..., 780 (101 samples)."""
@@ -26,7 +44,7 @@ def resample(
     wavelengths: np.ndarray,
     values: np.ndarray,
     *,
-    kind: Literal["sensor", "spectrum"],
+    kind: Kind,
 ) -> np.ndarray:
     """Resample spectra onto :data:`WAVELENGTHS` by linear interpolation.
 
@@ -34,7 +52,8 @@ def resample(
         wavelengths: strictly increasing sample positions in nm, shape ``(L,)``.
         values: samples, shape ``(L,)`` or ``(L, C)`` (wavelength first, channels after), or
             ``(N, L)`` when ``values.shape[-1] == L`` and ``values.shape[0] != L``.
-        kind: ``"sensor"`` (zero outside the measured range) or ``"spectrum"`` (edge-held).
+        kind: ``"sensor"`` (zero outside the measured range) or ``"reflectance"``, ``"light"``,
+            ``"spectrum"`` (edge values held), see :data:`Kind`.
 
     Returns:
         Array on the grid: ``(101,)``, ``(101, C)`` or ``(N, 101)`` following the input layout.
@@ -47,8 +66,7 @@ def resample(
         raise ValueError("wavelengths: must be strictly increasing")
     if not np.all(np.isfinite(values)):
         raise ValueError("values: contains NaN or infinite samples")
-    if kind not in ("sensor", "spectrum"):
-        raise ValueError(f"kind: expected 'sensor' or 'spectrum', got {kind!r}")
+    _check_kind(kind)
     length = wavelengths.size
     if values.ndim == 1:
         if values.size != length:
@@ -76,6 +94,12 @@ def resample(
 def chromaticity(rgb: np.ndarray) -> np.ndarray:
     """(r, g) chromaticity ``(R, G) / (R + G + B)`` of NumPy RGBs, shape ``(..., 3) -> (..., 2)``.
 
+    Arguments:
+        rgb: ``(..., 3)`` RGBs.
+
+    Returns:
+        ``(..., 2)`` chromaticities.
+
     A NumPy helper for loaders and plots, kept for its callers. New code uses
     :func:`ccjax._colour.rg_numpy` (or the jit-able :func:`ccjax.metrics.rg`), which agrees wherever
     ``R+G+B > 1e-12``; here a black RGB gives ``(0, 0)`` rather than the achromatic ``(1/3, 1/3)``,
@@ -84,3 +108,115 @@ def chromaticity(rgb: np.ndarray) -> np.ndarray:
     rgb = np.asarray(rgb, dtype=np.float64)
     total = rgb.sum(axis=-1, keepdims=True)
     return rgb[..., :2] / np.where(total > 0, total, 1.0)
+
+
+def _check_kind(kind) -> None:
+    if kind not in KINDS:
+        raise ValueError(
+            f"kind: expected one of {KINDS} (sensor curves are zero outside their range, the others hold "
+            f"their edge values), got {kind!r}"
+        )
+
+
+def is_colour_distribution(value: Any) -> bool:
+    """True for a colour-science ``SpectralDistribution`` or ``MultiSpectralDistributions``
+    (camera sensitivities included); colour-science is not imported to answer.
+
+    Arguments:
+        value: anything.
+
+    Returns:
+        Whether ``value`` is one of colour-science's spectral distribution types.
+    """
+    colour = sys.modules.get("colour")
+    if colour is None:  # an object of colour-science's types implies colour-science is imported
+        return False
+    return isinstance(value, colour.SpectralDistribution | colour.MultiSpectralDistributions)
+
+
+def from_colour(distribution: Any, *, kind: Kind) -> np.ndarray:
+    """A colour-science spectral distribution on :data:`WAVELENGTHS`.
+
+    The samples of ``distribution`` (its ``wavelengths`` and ``values``) are resampled by
+    :func:`resample` with ``kind`` deciding the values outside their range; the distribution's own
+    interpolator and extrapolator are not used, so a sensor curve is zero outside its range whatever
+    colour-science would extrapolate.
+
+    Arguments:
+        distribution: a ``colour.SpectralDistribution`` or a ``colour.MultiSpectralDistributions``
+            (e.g. ``colour.characterisation.RGB_CameraSensitivities``).
+        kind: ``"sensor"``, ``"reflectance"``, ``"light"`` or ``"spectrum"`` (:data:`Kind`); no
+            default, because the two rules give different numbers.
+
+    Returns:
+        ``(101,)`` for a ``SpectralDistribution``; ``(101, C)`` for ``C`` distributions (wavelength
+        first, one column per label, as colour-science stores them).
+    """
+    _check_kind(kind)
+    if not is_colour_distribution(distribution):
+        raise TypeError(
+            "distribution: expected a colour.SpectralDistribution or colour.MultiSpectralDistributions, "
+            f"got {type(distribution).__name__}"
+        )
+    return resample(np.asarray(distribution.wavelengths), np.asarray(distribution.values), kind=kind)
+
+
+def as_spectra(value: Any, *, kind: Kind, rows: bool = True) -> np.ndarray:
+    """Spectra as a NumPy array on the grid: colour-science distributions converted, arrays as given.
+
+    For functions that take spectra either way (``World.from_sources``, ``Camera.from_array``).
+
+    Arguments:
+        value: an array already on :data:`WAVELENGTHS`, or a colour-science distribution.
+        kind: the kind of a colour-science distribution (see :func:`from_colour`).
+        rows: for ``MultiSpectralDistributions``, return ``(C, 101)`` (one spectrum per row, as
+            ccjax stores reflectances and lights) rather than ``(101, C)`` (as it stores sensors).
+
+    Returns:
+        A float64 array; arrays are returned unchanged (``np.asarray``).
+    """
+    if not is_colour_distribution(value):
+        return np.asarray(value, dtype=np.float64)
+    out = from_colour(value, kind=kind)
+    return out.T if rows and out.ndim == 2 else out
+
+
+def to_colour(
+    values: Any,
+    *,
+    kind: Kind,
+    name: str | None = None,
+    labels: list[str] | None = None,
+) -> Any:
+    """ccjax spectra as colour-science distributions on :data:`WAVELENGTHS`.
+
+    The result's extrapolation follows ``kind``: a sensor extrapolates to zero, the other kinds hold
+    their edge values, so colour-science reads outside 380–780 nm what ccjax would.
+
+    Arguments:
+        values: ``(101,)`` (one spectrum), ``(101, C)`` (sensor-style columns) or ``(N, 101)``
+            (one spectrum per row) on the grid.
+        kind: ``"sensor"``, ``"reflectance"``, ``"light"`` or ``"spectrum"`` (:data:`Kind`).
+        name: the distribution's name.
+        labels: the names of the ``C`` (or ``N``) distributions (default ``"0"``, ``"1"``, ...).
+
+    Returns:
+        A ``colour.SpectralDistribution`` for ``(101,)``, else a ``colour.MultiSpectralDistributions``.
+    """
+    import colour  # imported here: colour-science is slow to import
+
+    _check_kind(kind)
+    values = np.asarray(values, dtype=np.float64)
+    edge = 0.0 if kind == "sensor" else None
+    extrapolation = {"extrapolator_kwargs": {"method": "Constant", "left": edge, "right": edge}}
+    if values.ndim == 1 and values.size == N_WAVELENGTHS:
+        return colour.SpectralDistribution(values, WAVELENGTHS, name=name or kind, **extrapolation)
+    if values.ndim == 2 and N_WAVELENGTHS in values.shape:
+        columns = values if values.shape[0] == N_WAVELENGTHS else values.T
+        labels = labels or [str(i) for i in range(columns.shape[1])]
+        if len(labels) != columns.shape[1]:
+            raise ValueError(f"labels: {len(labels)} names for {columns.shape[1]} spectra")
+        return colour.MultiSpectralDistributions(
+            columns, WAVELENGTHS, labels=list(labels), name=name or kind, **extrapolation
+        )
+    raise ValueError(f"values: expected shape (101,), (101, C) or (N, 101) on the ccjax grid, got {values.shape}")

@@ -21,7 +21,7 @@ from jaxtyping import Array, ArrayLike, Float
 from ccjax import data
 from ccjax._colour import rg_numpy
 from ccjax.camera import Camera
-from ccjax.spectra import WAVELENGTHS, resample
+from ccjax.spectra import WAVELENGTHS, SpectraLike, as_spectra, resample
 
 TRAIN_CELL = 0.02
 TEST_CELL = 0.01
@@ -176,15 +176,20 @@ class World(eqx.Module):
     def from_sources(
         cls,
         *,
-        reflectances: np.ndarray,
-        sources: np.ndarray,
+        reflectances: SpectraLike,
+        sources: SpectraLike,
         n_priority: int,
-        canonical: np.ndarray,
+        canonical: SpectraLike,
         camera: Camera,
         seed: int = 0,
         name: str = "custom",
     ) -> World:
         """Build a world from source spectra by the thesis' illuminant-set procedure.
+
+        Each spectrum argument also takes colour-science distributions (a
+        ``MultiSpectralDistributions`` with one distribution per surface or light, a
+        ``SpectralDistribution`` for ``canonical``), resampled with edge values held
+        (:func:`ccjax.spectra.from_colour`, kinds ``"reflectance"`` and ``"light"``).
 
         Arguments:
             reflectances: ``(S, 101)`` reflectances in [0, 1] (values above 1 allowed: fluorescent
@@ -195,10 +200,13 @@ class World(eqx.Module):
             camera: the camera.
             seed: seed of the random mixtures (test set uses ``seed + 1``).
             name: a label.
+
+        Returns:
+            The world.
         """
-        reflectances = _validated_spectra("reflectances", reflectances, 2)
-        sources = _validated_spectra("sources", sources, 2)
-        canonical = _validated_spectra("canonical", canonical, 1)
+        reflectances = _validated_spectra("reflectances", as_spectra(reflectances, kind="reflectance"), 2)
+        sources = _validated_spectra("sources", as_spectra(sources, kind="light"), 2)
+        canonical = _validated_spectra("canonical", as_spectra(canonical, kind="light"), 1)
         sensors = np.asarray(camera.sensors, dtype=np.float64)
         train = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TRAIN_CELL, seed=seed)
         test = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TEST_CELL, seed=seed + 1)
