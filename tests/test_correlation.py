@@ -118,6 +118,53 @@ def test_specular_brightness_matrix_matches_oracle(default_world, spectra):
     )
 
 
+def test_fluorescent_chromaticity_matrix_matches_oracle(default_world, spectra):
+    """FL training (§7.2, A20): the characterised fluorescent surfaces join the counts with a
+    weight that makes them 15 % of the occurrences; the oracle adds them bin by bin."""
+    from ccjax.estimators.gamut.extensions import characterised_fluorescents
+
+    few = slice(0, 3)
+    world = dataclasses.replace(default_world, train_illuminants=default_world.train_illuminants[few])
+    reflectances, lights, sensors = spectra
+    emitted = np.asarray(characterised_fluorescents(world).radiance(lights[few]), np.float64) @ sensors
+    n_s, n_f = len(reflectances), emitted.shape[1]
+    weight = 0.15 * n_s / (0.85 * n_f)  # w F / (w F + S) = 0.15
+    reference = []
+    for light, fluorescent in zip(lights[few], emitted):
+        counts = np.zeros((50, 50))
+        np.add.at(counts, oracle.rg_bins(oracle.responses(reflectances, light, sensors)), 1.0)
+        np.add.at(counts, oracle.rg_bins(fluorescent), weight)
+        counts = oracle.smooth_axis(oracle.smooth_axis(counts, 0, 1.0), 1, 1.0)
+        p = counts / counts.sum()
+        reference.append(np.log(np.maximum(p, 1e-6 * p.max())).ravel())
+    ours = correlation.chromaticity_matrix(world, sigma=1.0, floor=1e-6, fluorescent=0.15)
+    np.testing.assert_allclose(ours, np.stack(reference).T, atol=2e-5, rtol=0)
+    matte = correlation.chromaticity_matrix(world, sigma=1.0, floor=1e-6)
+    assert np.max(np.abs(ours - matte)) > 1.0  # the fluorescent bins gained probability
+    rgb, weights, _ = correlation.training_responses(world, fluorescent=0.15)
+    assert rgb.shape[1] == n_s + n_f and abs(weights[n_s:].sum() / weights.sum() - 0.15) < 1e-12
+
+
+def test_fluorescent_labels(default_world):
+    few = dataclasses.replace(default_world, train_illuminants=default_world.train_illuminants[:3])
+    for label, kind in (
+        ("FL-C-by-C-MMSE", correlation.ColourByCorrelation),
+        ("FL-C-by-C-MAP", correlation.ColourByCorrelation),
+        ("FL-RGB-C-by-C-MAP-counts", correlation.ColourByCorrelation3D),
+        ("FL-RGB-C-by-C-MMSE-counts", correlation.ColourByCorrelation3D),
+        ("FL-SPEC-RGB-C-by-C-MMSE", correlation.ColourByCorrelation3D),
+    ):
+        model = registry.fit(label, few)
+        assert isinstance(model, kind), label
+        out = jax.vmap(model)(jnp.zeros((2, 4, 3)), jnp.asarray([[True] * 4, [False] * 4]))
+        assert np.all(np.isfinite(np.asarray(out.illuminant))) and not np.any(np.asarray(out.ok)), label
+    fl = registry.fit("FL-C-by-C-MMSE", few)
+    matte = registry.fit("C-by-C-MMSE", few)
+    assert np.max(np.abs(np.asarray(fl.log_probability) - np.asarray(matte.log_probability))) > 1.0
+    with pytest.raises(ValueError, match="fluorescent"):
+        registry.fit("C-by-C-MMSE", few, fluorescent=1.5)
+
+
 @pytest.fixture(scope="module")
 def oracle_hull(spectra):
     return oracle.hull_compatibility(*spectra)

@@ -18,8 +18,9 @@ matrix is the "outside" cell (impossible chromaticity or brighter than modelled)
 Labels: ``C-by-C-01``, ``C-by-C-MAP``, ``C-by-C-MMSE``, ``C-by-C-MLM``; ``RGB-C-by-C-MAP`` and
 ``RGB-C-by-C-MMSE`` (discretisation remedy 2, presence minus ``n_occ log(b / B0)``, the default;
 suffix ``-counts`` selects remedy 1, duplicate counts, as Table 10.1 used; ``-presence`` is explicit);
-prefixes ``SPEC-`` (specular training world) and ``STD-`` (matte, Table 10.2's name); ``soft-``
-variants of MAP and MMSE with kernel binning and softmax posteriors.
+prefixes ``SPEC-`` (specular training world), ``STD-`` (matte, Table 10.2's name) and ``FL-``
+(fluorescent surfaces in the training world at about 15 % of occurrences, §7.2, Table 10.1; before
+``SPEC-``/``STD-``); ``soft-`` variants of MAP and MMSE with kernel binning and softmax posteriors.
 """
 
 from __future__ import annotations
@@ -43,7 +44,12 @@ from ccjax.estimators.correlation.chromaticity import (
     mlm_width_search,
     tune_mlm_width,
 )
-from ccjax.estimators.correlation.fitting import DEFAULT_SOFTNESS, DEFAULT_TEMPERATURE, cached
+from ccjax.estimators.correlation.fitting import (
+    DEFAULT_SOFTNESS,
+    DEFAULT_TEMPERATURE,
+    FLUORESCENT_FRACTION,
+    cached,
+)
 from ccjax.estimators.correlation.matrices import (
     BRIGHTNESS_SIGMA,
     brightness_matrix,
@@ -54,16 +60,23 @@ from ccjax.estimators.correlation.matrices import (
 from ccjax.estimators.registry import register
 
 
+def _training_world(match, options: dict) -> None:
+    """The training-world prefixes: ``FL-`` (fluorescent surfaces) and ``SPEC-`` (specularities)."""
+    if match.groupdict().get("fl"):
+        options.setdefault("fluorescent", True)
+    if match.groupdict().get("spec") or match.groupdict().get("prefix") == "SPEC-":
+        options.setdefault("specular", True)
+
+
 @register(
-    r"(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE|MLM)",
-    grammar="[SPEC-]C-by-C-(MAP|MMSE|MLM)",
+    r"(?P<fl>FL-)?(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE|MLM)",
+    grammar="[FL-][SPEC-]C-by-C-(MAP|MMSE|MLM)",
     example="C-by-C-MMSE",
-    description="Colour by Correlation in (r,g): MAP, MMSE, MLM (§4.5.4)",
+    description="Colour by Correlation in (r,g): MAP, MMSE, MLM (§4.5.4); FL-: fluorescent training (§7.2)",
     input_kind="surfaces",
 )
 def _build_chromaticity(world, match, **options):
-    if match["spec"]:
-        options.setdefault("specular", True)
+    _training_world(match, options)
     return fit_chromaticity(world, match["selector"], **options)
 
 
@@ -78,44 +91,41 @@ def _build_hull(world, match, **options):
 
 
 @register(
-    r"(?P<prefix>STD-|SPEC-)?RGB-C-by-C-(?P<selector>MAP|MMSE)(-(?P<method>counts|presence))?",
-    grammar="[STD-|SPEC-]RGB-C-by-C-(MAP|MMSE)[-counts|-presence]",
+    r"(?P<fl>FL-)?(?P<prefix>STD-|SPEC-)?RGB-C-by-C-(?P<selector>MAP|MMSE)(-(?P<method>counts|presence))?",
+    grammar="[FL-][STD-|SPEC-]RGB-C-by-C-(MAP|MMSE)[-counts|-presence]",
     example="RGB-C-by-C-MMSE",
-    description="3-D Colour by Correlation in (r,g,L), brightness too (ch. 10); -counts: remedy 1",
+    description="3-D Colour by Correlation in (r,g,L), brightness too (ch. 10); -counts: remedy 1; FL-: fluorescent",
     input_kind="surfaces",
 )
 def _build_brightness(world, match, **options):
-    if match["prefix"] == "SPEC-":
-        options.setdefault("specular", True)
+    _training_world(match, options)
     return fit_brightness(world, match["selector"], method=match["method"] or "presence", **options)
 
 
 @register(
-    r"soft-(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE)",
-    grammar="soft-[SPEC-]C-by-C-(MAP|MMSE)",
+    r"soft-(?P<fl>FL-)?(?P<spec>SPEC-)?C-by-C-(?P<selector>MAP|MMSE)",
+    grammar="soft-[FL-][SPEC-]C-by-C-(MAP|MMSE)",
     example="soft-C-by-C-MMSE",
     description="differentiable 2-D Colour by Correlation (soft bins, softmax posterior)",
     input_kind="surfaces",
     differentiable=True,
 )
 def _build_soft_chromaticity(world, match, **options):
-    if match["spec"]:
-        options.setdefault("specular", True)
+    _training_world(match, options)
     options.setdefault("softness", DEFAULT_SOFTNESS)
     return fit_chromaticity(world, match["selector"], **options)
 
 
 @register(
-    r"soft-(?P<prefix>STD-|SPEC-)?RGB-C-by-C-(?P<selector>MAP|MMSE)(-(?P<method>counts|presence))?",
-    grammar="soft-[STD-|SPEC-]RGB-C-by-C-(MAP|MMSE)[-counts|-presence]",
+    r"soft-(?P<fl>FL-)?(?P<prefix>STD-|SPEC-)?RGB-C-by-C-(?P<selector>MAP|MMSE)(-(?P<method>counts|presence))?",
+    grammar="soft-[FL-][STD-|SPEC-]RGB-C-by-C-(MAP|MMSE)[-counts|-presence]",
     example="soft-RGB-C-by-C-MMSE",
     description="differentiable 3-D Colour by Correlation (soft bins, softmax posterior)",
     input_kind="surfaces",
     differentiable=True,
 )
 def _build_soft_brightness(world, match, **options):
-    if match["prefix"] == "SPEC-":
-        options.setdefault("specular", True)
+    _training_world(match, options)
     options.setdefault("softness", DEFAULT_SOFTNESS)
     return fit_brightness(world, match["selector"], method=match["method"] or "presence", **options)
 
@@ -124,6 +134,7 @@ __all__ = [
     "BRIGHTNESS_SIGMA",
     "DEFAULT_SOFTNESS",
     "DEFAULT_TEMPERATURE",
+    "FLUORESCENT_FRACTION",
     "MLM_WIDTHS",
     "N_RG_CELLS",
     "RG_BINS",

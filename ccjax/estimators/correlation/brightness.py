@@ -26,6 +26,7 @@ from ccjax.estimators.correlation.fitting import (
     cached,
     check_positive,
     illuminant_rg_of,
+    resolve_fluorescent,
     resolve_specular,
 )
 from ccjax.estimators.correlation.matrices import BRIGHTNESS_SIGMA, brightness_matrix
@@ -214,6 +215,7 @@ def fit_brightness(
     softness: float | None = None,
     temperature: float = DEFAULT_TEMPERATURE,
     specular_steps: int = 8,
+    fluorescent=None,
 ) -> ColourByCorrelation3D:
     """Fit 3-D Colour by Correlation (chapter 10), ``RGB-C-by-C-MAP`` / ``-MMSE``.
 
@@ -228,6 +230,9 @@ def fit_brightness(
         brightness_range: hypotheses within ``[B0 / k, k B0]`` (k = 3).
         n_levels: log-spaced brightness levels (101).
         softness, temperature: soft binning (bins) and soft-MAP temperature; ``None`` is hard.
+        specular_steps: specular copies per surface in specular training.
+        fluorescent: FL training (``FL-`` labels, ch. 10 Table 10.1): ``True`` for fluorescent
+            surfaces at about 15 % of the training occurrences, or that fraction.
     """
     if selector not in ("MAP", "MMSE"):
         raise ValueError(f"selector: expected MAP or MMSE, got {selector!r}")
@@ -248,6 +253,9 @@ def fit_brightness(
         "specular": repr(specular),
         "specular_steps": specular_steps,
     }
+    fluorescent = resolve_fluorescent(fluorescent)
+    if fluorescent is not None:
+        options["fluorescent"] = fluorescent  # absent otherwise: the keys of existing caches stay valid
     if softness is not None:
         softness = check_positive("softness", softness)
 
@@ -260,6 +268,7 @@ def fit_brightness(
             floor=options["floor"],
             specular=specular,
             specular_steps=specular_steps,
+            fluorescent=fluorescent,
         )
         return {"log_probability": matrix, "l_total": np.asarray(l_total)}
 

@@ -19,6 +19,7 @@ from ccjax.estimators.correlation.fitting import (
     cached,
     check_positive,
     illuminant_rg_of,
+    resolve_fluorescent,
     resolve_specular,
 )
 from ccjax.estimators.correlation.matrices import chromaticity_matrix, hull_matrix
@@ -111,6 +112,7 @@ def fit_chromaticity(
     sigma: float = 1.0,
     floor: float = 1e-6,
     specular=None,
+    fluorescent=None,
     mlm_width: float | None = None,
     softness: float | None = None,
     temperature: float = DEFAULT_TEMPERATURE,
@@ -122,6 +124,8 @@ def fit_chromaticity(
         selector: ``"MAP"``, ``"MMSE"`` or ``"MLM"``.
         sigma: matrix smoothing in bins; floor: probability floor (see :func:`chromaticity_matrix`).
         specular: train on specular surfaces as well (``SPEC-`` labels).
+        fluorescent: FL training (``FL-`` labels, §7.2): ``True`` for fluorescent surfaces at
+            about 15 % of the training occurrences, or that fraction.
         mlm_width: MLM mask width in bins; ``None`` chooses it as the thesis did (:func:`tune_mlm_width`).
         softness: soft binning (bins); ``None`` is the thesis' hard binning.
         temperature: soft MAP's softmax temperature on the log-posterior.
@@ -131,12 +135,13 @@ def fit_chromaticity(
     sigma = check_positive("sigma", sigma, allow_zero=True)
     floor = check_positive("floor", floor)
     specular = resolve_specular(specular)
+    fluorescent = resolve_fluorescent(fluorescent)
     if softness is not None:
         softness = check_positive("softness", softness)
         if selector == "MLM":
             raise ValueError("softness: the MLM selector has no soft variant")
     temperature = check_positive("temperature", temperature)
-    matrix = chromaticity_matrix(world, sigma=sigma, floor=floor, specular=specular)
+    matrix = chromaticity_matrix(world, sigma=sigma, floor=floor, specular=specular, fluorescent=fluorescent)
     model = ColourByCorrelation(
         log_probability=jnp.asarray(matrix),
         illuminant_rg=illuminant_rg_of(world),
@@ -147,20 +152,27 @@ def fit_chromaticity(
     )
     if selector == "MLM":
         if mlm_width is None:
-            mlm_width = float(mlm_width_search(world, sigma=sigma, floor=floor, specular=specular)["best"])
+            search = mlm_width_search(world, sigma=sigma, floor=floor, specular=specular, fluorescent=fluorescent)
+            mlm_width = float(search["best"])
         mlm_width = check_positive("mlm_width", mlm_width)
         model = dataclasses.replace(model, mlm_mask=mlm_mask(model.illuminant_rg, mlm_width), mlm_width=mlm_width)
     return model
 
 
-def mlm_width_search(world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular=None) -> dict[str, np.ndarray]:
+def mlm_width_search(
+    world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular=None, fluorescent=None
+) -> dict[str, np.ndarray]:
     """The MLM mask-width search of :func:`tune_mlm_width` for the MMSE/MAP matrix with these
-    options, cached on disk; ``["best"]`` is the width C-by-C-MLM uses."""
+    options, cached on disk; ``["best"]`` is the width C-by-C-MLM uses (the validation scenes
+    have no fluorescent surfaces, so FL-C-by-C-MLM's width is tuned for the matte world)."""
     specular = resolve_specular(specular)
+    fluorescent = resolve_fluorescent(fluorescent)
     options = {"sigma": sigma, "floor": floor, "specular": repr(specular)}
+    if fluorescent is not None:
+        options["fluorescent"] = fluorescent  # absent otherwise: the keys of existing caches stay valid
 
     def compute():
-        model = fit_chromaticity(world, "MMSE", sigma=sigma, floor=floor, specular=specular)
+        model = fit_chromaticity(world, "MMSE", sigma=sigma, floor=floor, specular=specular, fluorescent=fluorescent)
         return tune_mlm_width(world, model, specular=specular)
 
     return cached("mlm-width", world, options, compute)

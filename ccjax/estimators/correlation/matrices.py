@@ -19,14 +19,18 @@ remedy 1 MAP/MMSE 0.0319/0.0264 (thesis 0.030/0.025), remedy 2 0.0252/0.0215 (0.
 
 
 def training_responses(
-    world: World, specular: Specular | None = None, steps: int = 8
+    world: World, specular: Specular | None = None, steps: int = 8, fluorescent: float | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Camera RGB of every reflectance under every training illuminant, with frequency weights.
 
-    Uniform statistics over surfaces and illuminants (§4.5.4, §10.2). With ``specular``, each
-    surface also appears with ``s`` times the perfect white added, ``s`` at the midpoints of 8
-    equal steps of ``[0, max_amount]``; the matte copy has weight ``1 - probability`` and each
-    specular copy ``probability / 8`` (a coarse model of the test generator, §10.2).
+    Uniform statistics over surfaces and illuminants (§4.5.4, §10.2). With ``fluorescent`` (a
+    fraction in (0, 1)), the characterised fluorescent surfaces
+    (:func:`ccjax.estimators.gamut.extensions.characterised_fluorescents`) join the reflectances,
+    weighted so that they are that fraction of all occurrences (FL training, §7.2, §10.2: "about
+    15 %"). With ``specular``, each surface also appears with ``s`` times the perfect white
+    added, ``s`` at the midpoints of 8 equal steps of ``[0, max_amount]``; the matte copy has
+    weight ``1 - probability`` and each specular copy ``probability / 8`` of the surface's weight
+    (a coarse model of the test generator, §10.2).
 
     Returns:
         ``(rgb (I, K, 3), weights (K,), whites (I, 3))`` in float64.
@@ -38,15 +42,20 @@ def training_responses(
     lit = (lights[:, :, None] * sensors[None]).transpose(1, 0, 2).reshape(lights.shape[1], -1)  # (101, I*3)
     rgb = (reflectances @ lit).reshape(len(reflectances), len(lights), 3).transpose(1, 0, 2)  # one BLAS call
     weights = np.ones(rgb.shape[1])
+    if fluorescent is not None:
+        from ccjax import materials
+        from ccjax.estimators.gamut.extensions import characterised_fluorescents
+
+        radiance = np.asarray(characterised_fluorescents(world).radiance(lights), np.float64)  # (I, F, 101)
+        share = materials.fluorescent_weights(len(reflectances), radiance.shape[1], fraction=fluorescent)
+        rgb = np.concatenate([rgb, radiance @ sensors], axis=1)
+        weights = np.concatenate([weights, np.full(radiance.shape[1], share.fluorescent)])
     if specular is not None:
         amounts = (np.arange(steps) + 0.5) / steps * specular.max_amount
         shiny = rgb[:, :, None, :] + amounts[None, None, :, None] * whites[:, None, None, :]
         rgb = np.concatenate([rgb, shiny.reshape(rgb.shape[0], -1, 3)], axis=1)
         weights = np.concatenate(
-            [
-                np.full(weights.size, 1.0 - specular.probability),
-                np.full(weights.size * steps, specular.probability / steps),
-            ]
+            [weights * (1.0 - specular.probability), np.repeat(weights, steps) * (specular.probability / steps)]
         )
     return rgb, weights, whites
 
@@ -64,7 +73,12 @@ def _log_of_smoothed(counts: np.ndarray, sigma: tuple[float, ...], floor: float)
 
 
 def chromaticity_matrix(
-    world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular: Specular | None = None
+    world: World,
+    *,
+    sigma: float = 1.0,
+    floor: float = 1e-6,
+    specular: Specular | None = None,
+    fluorescent: float | None = None,
 ) -> np.ndarray:
     """The probabilistic 2-D correlation matrix (§4.5.4): per training illuminant, the frequency of
     the reflectances' (r,g) bins, smoothed with a Gaussian of ``sigma`` bins, as log-probabilities.
@@ -75,11 +89,12 @@ def chromaticity_matrix(
         floor: probabilities below ``floor`` x the illuminant's maximum are raised to it before the
             log, so no observation rules an illuminant out completely.
         specular: train on specular surfaces too (see :func:`training_responses`).
+        fluorescent: fraction of fluorescent occurrences in training (FL-, §7.2), or ``None``.
 
     Returns:
         ``(2500, I)`` float32 log-probabilities, row ``50 i + j`` for bin ``(i, j)``.
     """
-    rgb, weights, _ = training_responses(world, specular)
+    rgb, weights, _ = training_responses(world, specular, fluorescent=fluorescent)
     bins = rg_bins_np(rgb)
     n_lights = rgb.shape[0]
     flat = (np.arange(n_lights)[:, None] * RG_BINS + bins[..., 0]) * RG_BINS + bins[..., 1]
@@ -123,19 +138,21 @@ def brightness_matrix(
     floor: float = 1e-6,
     specular: Specular | None = None,
     specular_steps: int = 8,
+    fluorescent: float | None = None,
 ) -> tuple[np.ndarray, int]:
     """The 3-D correlation matrix of chapter 10 (§10.2).
 
     For each training illuminant the reflectances' (r, g, L / L_white) are counted in cells
     (``l_bins`` linear bins per unit of ``L / L_white``; matte surfaces fill ``[0, 1)``, specular
-    training extends the axis to ``1 + max_amount``), smoothed by a Gaussian (``sigma`` bins in r
+    training extends the axis to ``1 + max_amount``; ``fluorescent``: the fraction of fluorescent
+    occurrences of FL training, :func:`training_responses`), smoothed by a Gaussian (``sigma`` bins in r
     and g, ``sigma_l`` in L; :data:`BRIGHTNESS_SIGMA`), normalised, floored and logged.
 
     Returns:
         ``(log_probability (1275 * l_total + 1, I) float32, l_total)``; the last row is the
         outside cell, at each illuminant's floor.
     """
-    rgb, weights, whites = training_responses(world, specular, specular_steps)
+    rgb, weights, whites = training_responses(world, specular, specular_steps, fluorescent)
     n_lights = rgb.shape[0]
     relative = rgb.sum(axis=-1) / whites.sum(axis=-1)[:, None]
     reach = 1.0 + (specular.max_amount if specular is not None else 0.0)
