@@ -199,3 +199,124 @@ def test_sweep_keys_are_the_surface_count_stream():
     assert not np.array_equal(
         jax.random.key_data(sweep_keys(key, 8, 0, 3)), jax.random.key_data(sweep_keys(key, 9, 0, 3))
     )
+
+
+# -- materials (issue 13): metallic highlights (§8.3) and fluorescent surfaces (§7.3) ------------
+
+
+@pytest.fixture(scope="module")
+def material_tables(default_world):
+    from ccjax.materials import synthetic_fluorescent_surfaces
+
+    return SceneTables.from_world(default_world, metals=True, fluorescent=synthetic_fluorescent_surfaces())
+
+
+def _drawn(default_world, keys, n_surfaces):
+    n_lights, n_reflectances = default_world.test_illuminants.shape[0], default_world.reflectances.shape[0]
+    return draw_scenes(keys, n_lights, n_reflectances, n_surfaces)
+
+
+def test_material_tables_are_spectral_products(default_world, material_tables):
+    """Metal and fluorescent tables recomputed from spectra with NumPy."""
+    from ccjax.materials import metal_spectra, synthetic_fluorescent_surfaces
+
+    lights = np.asarray(default_world.test_illuminants, dtype=np.float64)
+    sensors = np.asarray(default_world.camera.sensors, dtype=np.float64)
+    canonical = np.asarray(default_world.canonical, dtype=np.float64)
+    metals = metal_spectra()
+    np.testing.assert_allclose(
+        np.asarray(material_tables.metal_rgb[7]), (metals * lights[7]) @ sensors, rtol=2e-4, atol=1e-6
+    )
+    np.testing.assert_allclose(
+        np.asarray(material_tables.canonical_metal_rgb), (metals * canonical) @ sensors, rtol=2e-4, atol=1e-6
+    )
+    model = synthetic_fluorescent_surfaces()
+    rho, emission = np.asarray(model.reflectance, np.float64), np.asarray(model.emission, np.float64)
+    radiance = rho * lights[7] + emission @ lights[7]  # (F, 101)
+    np.testing.assert_allclose(np.asarray(material_tables.fluorescent_rgb[7]), radiance @ sensors, rtol=2e-4, atol=1e-6)
+
+
+def test_metallic_recipe(default_world, material_tables):
+    """Same keys: the metallic scenes are the matte ones plus s * M under the scene light, s ~ U(0, 4)
+    on a quarter of the surfaces, M uniform over the six metals; canonical RGBs gain s * M too."""
+    keys = scene_keys(jax.random.key(9), 0, 3000)
+    matte = sample_batch(keys, material_tables, 8)
+    metal = sample_batch(keys, material_tables, 8, metallic=scenes.Metallic())
+    light = np.asarray(_drawn(default_world, keys, 8).light)
+    diff = np.asarray(metal.rgb - matte.rgb, dtype=np.float64)  # (B, P, 3)
+    candidates = np.asarray(material_tables.metal_rgb, dtype=np.float64)[light]  # (B, M, 3)
+    # Each difference is a non-negative multiple of exactly one metal's RGB under the scene light.
+    strength = np.einsum("bpc,bmc->bpm", diff, candidates) / np.einsum("bmc,bmc->bm", candidates, candidates)[:, None]
+    residual = np.linalg.norm(diff[:, :, None, :] - strength[..., None] * candidates[:, None], axis=-1)
+    best = residual.argmin(axis=-1)
+    s = np.take_along_axis(strength, best[..., None], axis=-1)[..., 0]
+    assert np.all(residual.min(axis=-1) <= 1e-4 * (1 + np.linalg.norm(diff, axis=-1)))
+    has = s > 1e-5
+    assert abs(has.mean() - 0.25) < 0.01
+    assert abs(s[has].mean() - 2.0) < 0.06 and s.max() <= 4.0 + 1e-4
+    counts = np.bincount(best[has], minlength=6)
+    assert np.all(np.abs(counts - has.sum() / 6) < 5 * np.sqrt(has.sum() / 6))
+    canonical = np.asarray(material_tables.canonical_metal_rgb, dtype=np.float64)[best]
+    np.testing.assert_allclose(
+        np.asarray(metal.canonical_rgb - matte.canonical_rgb), s[..., None] * canonical, atol=2e-4
+    )
+    np.testing.assert_array_equal(np.asarray(metal.illuminant), np.asarray(matte.illuminant))
+
+
+def test_fluorescent_recipe(default_world, material_tables):
+    """Each slot fluorescent with p = 0.3 (A21), identity uniform over the nine, under the scene
+    light and the canonical one; other slots keep their drawn reflectance."""
+    keys = scene_keys(jax.random.key(3), 0, 3000)
+    matte = sample_batch(keys, material_tables, 8)
+    mixed = sample_batch(keys, material_tables, 8, fluorescent=scenes.Fluorescent())
+    light = np.asarray(_drawn(default_world, keys, 8).light)
+    table = np.asarray(material_tables.fluorescent_rgb)[light]  # (B, F, 3)
+    rgb = np.asarray(mixed.rgb)
+    distance = np.abs(rgb[:, :, None, :] - table[:, None]).max(axis=-1)  # (B, P, F)
+    is_fluorescent = distance.min(axis=-1) <= 1e-6
+    changed = np.any(rgb != np.asarray(matte.rgb), axis=-1)
+    np.testing.assert_array_equal(is_fluorescent, changed)
+    assert abs(is_fluorescent.mean() - 0.3) < 0.01
+    identity = distance.argmin(axis=-1)[is_fluorescent]
+    expected = is_fluorescent.sum() / 9
+    assert np.all(np.abs(np.bincount(identity, minlength=9) - expected) < 5 * np.sqrt(expected))
+    canonical = np.asarray(material_tables.canonical_fluorescent_rgb)[identity]
+    np.testing.assert_allclose(np.asarray(mixed.canonical_rgb)[is_fluorescent], canonical, rtol=1e-6)
+
+
+def test_materials_finite_reproducible_and_masked(default_world):
+    """All options together: finite, the clip mask is exactly the level test, same key -> same scenes,
+    and the options off leave the scenes exactly as before (their draws are folded off the key)."""
+    key = jax.random.key(12)
+    options = dict(specular=True, metallic=True, fluorescent=True, noise=True, clip=300 / 255)
+    one = sample(key, default_world, 200, 16, **options)
+    two = sample(key, default_world, 200, 16, **options)
+    rgb, mask = np.asarray(one.rgb), np.asarray(one.mask)
+    assert np.isfinite(rgb).all() and np.isfinite(np.asarray(one.canonical_rgb)).all()
+    np.testing.assert_array_equal(mask, np.all(rgb <= 300 / 255, axis=-1))
+    assert 0 < (~mask).mean() < 0.6
+    np.testing.assert_array_equal(rgb, np.asarray(two.rgb))
+    plain = sample(key, default_world, 200, 16, specular=True, noise=True, clip=300 / 255)
+    off = sample(key, default_world, 200, 16, specular=True, noise=True, clip=300 / 255, metallic=False)
+    np.testing.assert_array_equal(np.asarray(plain.rgb), np.asarray(off.rgb))
+
+
+def test_material_options_are_validated(default_world):
+    with pytest.raises(ValueError, match=r"Metallic\.probability"):
+        scenes.Metallic(probability=float("nan"))
+    with pytest.raises(ValueError, match=r"Metallic\.max_amount"):
+        scenes.Metallic(max_amount=-1.0)
+    with pytest.raises(ValueError, match=r"Fluorescent\.probability"):
+        scenes.Fluorescent(probability=1.5)
+    tables = SceneTables.from_world(default_world)
+    keys = scene_keys(jax.random.key(0), 0, 2)
+    with pytest.raises(ValueError, match="metallic: the scene tables have no metals"):
+        sample_batch(keys, tables, 4, metallic=scenes.Metallic())
+    with pytest.raises(ValueError, match="fluorescent: the scene tables have no fluorescent"):
+        sample_batch(keys, tables, 4, fluorescent=scenes.Fluorescent())
+    with pytest.raises(ValueError, match="metals"):
+        SceneTables.from_world(default_world, metals=-np.ones((2, 101)))
+    with pytest.raises(ValueError, match="metallic: expected True, None or a Metallic"):
+        scenes.resolve_materials("yes", None)
+    with pytest.raises(ValueError, match="fluorescent: expected True, None or a Fluorescent"):
+        scenes.resolve_materials(None, scenes.Specular())

@@ -117,15 +117,15 @@ class FluorescentParameters:
 
 
 FLUORESCENT_SURFACES: tuple[FluorescentParameters, ...] = (
-    FluorescentParameters("detergent orange", 500, 60, 590, 40, 0.70, 0.90, 0.85),
-    FluorescentParameters("detergent yellow", 450, 60, 540, 45, 0.80, 0.90, 0.85),
-    FluorescentParameters("detergent magenta", 540, 50, 610, 40, 0.60, 0.90, 0.85),
-    FluorescentParameters("ball green", 470, 50, 515, 35, 0.85, 0.85, 0.80),
-    FluorescentParameters("ball pink", 550, 45, 600, 40, 0.65, 0.85, 0.80),
-    FluorescentParameters("tape blaze orange", 520, 60, 605, 45, 0.70, 0.95, 0.80),
-    FluorescentParameters("tape lime", 440, 70, 525, 40, 0.75, 0.95, 0.80),
-    FluorescentParameters("paper red", 560, 50, 630, 40, 0.55, 0.90, 0.90),
-    FluorescentParameters("paper blue", 400, 50, 455, 40, 0.60, 0.90, 0.90),
+    FluorescentParameters("detergent orange", 500.0, 60.0, 590.0, 40.0, 0.70, 0.90, 0.85),
+    FluorescentParameters("detergent yellow", 450.0, 60.0, 540.0, 45.0, 0.80, 0.90, 0.85),
+    FluorescentParameters("detergent magenta", 540.0, 50.0, 610.0, 40.0, 0.60, 0.90, 0.85),
+    FluorescentParameters("ball green", 470.0, 50.0, 515.0, 35.0, 0.85, 0.85, 0.80),
+    FluorescentParameters("ball pink", 550.0, 45.0, 600.0, 40.0, 0.65, 0.85, 0.80),
+    FluorescentParameters("tape blaze orange", 520.0, 60.0, 605.0, 45.0, 0.70, 0.95, 0.80),
+    FluorescentParameters("tape lime", 440.0, 70.0, 525.0, 40.0, 0.75, 0.95, 0.80),
+    FluorescentParameters("paper red", 560.0, 50.0, 630.0, 40.0, 0.55, 0.90, 0.90),
+    FluorescentParameters("paper blue", 400.0, 50.0, 455.0, 40.0, 0.60, 0.90, 0.90),
 )
 """The nine synthetic surfaces standing in for the thesis' nine measured ones (§7.3)."""
 

@@ -6,6 +6,11 @@
 :func:`sample`, :func:`sample_batch` (hence the sweeps) and the chapter-5 experiment use it, so
 the same key gives the same scene in each. Mondrian images split their keys differently (one
 more key for the layout) and draw with :func:`draw_without_replacement` directly.
+
+Materials (issue 13): :class:`Metallic` highlights (§8.3) and :class:`Fluorescent` surfaces
+(§7.3) are options of :func:`sample` / :func:`sample_batch`; their colours live in
+:class:`SceneTables` (``SceneTables.from_world(world, metals=True, fluorescent=model)``, with
+``model`` a :class:`RadianceModel` from :mod:`ccjax.materials`).
 """
 
 from ccjax.scenes.mondrian import MondrianImages as MondrianImages
@@ -13,6 +18,9 @@ from ccjax.scenes.mondrian import mondrian_batch as mondrian_batch
 from ccjax.scenes.mondrian import mondrian_layout as mondrian_layout
 from ccjax.scenes.mondrian import render_mondrian as render_mondrian
 from ccjax.scenes.mondrian import sample_mondrians as sample_mondrians
+from ccjax.scenes.surfaces import Fluorescent as Fluorescent
+from ccjax.scenes.surfaces import Metallic as Metallic
+from ccjax.scenes.surfaces import RadianceModel as RadianceModel
 from ccjax.scenes.surfaces import SceneDraw as SceneDraw
 from ccjax.scenes.surfaces import SceneKeys as SceneKeys
 from ccjax.scenes.surfaces import Scenes as Scenes
@@ -23,6 +31,7 @@ from ccjax.scenes.surfaces import draw_scene as draw_scene
 from ccjax.scenes.surfaces import draw_scenes as draw_scenes
 from ccjax.scenes.surfaces import draw_without_replacement as draw_without_replacement
 from ccjax.scenes.surfaces import require_count as require_count
+from ccjax.scenes.surfaces import resolve_materials as resolve_materials
 from ccjax.scenes.surfaces import resolve_options as resolve_options
 from ccjax.scenes.surfaces import sample as sample
 from ccjax.scenes.surfaces import sample_batch as sample_batch
