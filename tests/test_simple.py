@@ -234,3 +234,31 @@ def test_pairwise_reduce_equals_sum_and_max(length):
     x = np.random.default_rng(length).uniform(size=(length, 3)).astype(np.float32)
     np.testing.assert_allclose(pairwise_reduce(jnp.asarray(x), jnp.add), x.sum(axis=0), rtol=1e-5)
     np.testing.assert_array_equal(pairwise_reduce(jnp.asarray(x), jnp.maximum), x.max(axis=0))
+
+
+def test_default_preprocessing_per_label(default_world):
+    """Statistics methods take every usable pixel; the world-based and constant ones the thesis' ave5."""
+    want = {
+        "GW": "pixels",
+        "shades-of-grey-p6": "pixels",
+        "RETINEX": "pixels",
+        "max-rgb": "pixels",
+        "soft-RETINEX-t0.01": "pixels",
+        "DB-GW": "ave5",
+        "NOTHING": "ave5",
+        "AVE-ILLUM": "ave5",
+    }
+    for label, name in want.items():
+        assert registry.fit(label, default_world).default_preprocessing == name, label
+
+
+def test_tiny_scenes_are_estimated(models, run):
+    """with_fallback's light test is scale-free: a scene at 1e-30 (far below the old absolute
+    1e-12 threshold on the estimate's sum) is still a scene, with the same chromaticity."""
+    rgb = np.random.default_rng(7).uniform(0.1, 1.0, (P, 3)).astype(np.float32)
+    mask = np.ones(P, bool)
+    for label in ["GW", "DB-GW", "RETINEX"]:
+        base = run(models[label], rgb, mask)
+        tiny = run(models[label], rgb * np.float32(1e-30), mask)
+        assert bool(tiny.ok), label
+        np.testing.assert_allclose(np.asarray(tiny.illuminant) * 1e30, base.illuminant, rtol=1e-5)

@@ -161,3 +161,19 @@ def test_gradient_with_respect_to_the_norm():
         assert float(jnp.linalg.norm(jax.jacrev(chromaticity)(jnp.asarray(4.0)))) > 1e-6
         traced = jax.jit(lambda m, x, k: m(x, k))(model, image, mask_j).illuminant
         np.testing.assert_allclose(traced, model(image, mask_j).illuminant, rtol=1e-12)
+
+
+def test_tiny_images_are_estimated():
+    """No absolute threshold: an image scaled by 1e-15 gives the same estimate scaled by 1e-15
+    (the old 1e-12 floor on the edges made it fall back; much smaller and float32 squares of the
+    derivatives underflow); a black image still falls back."""
+    image, mask = _image(3)
+    estimator = GreyEdge(order=1, p=6.0, sigma=1.0, fallback=FALLBACK)
+    assert estimator.default_preprocessing == "pixels"
+    model = eqx.filter_jit(estimator)
+    base = model(jnp.asarray(image), jnp.asarray(mask))
+    tiny = model(jnp.asarray(image * np.float32(1e-15)), jnp.asarray(mask))
+    assert bool(base.ok) and bool(tiny.ok)
+    np.testing.assert_allclose(np.asarray(tiny.illuminant) * 1e15, base.illuminant, rtol=1e-4)
+    black = model(jnp.zeros(image.shape, jnp.float32), jnp.asarray(mask))
+    assert not bool(black.ok) and np.allclose(black.illuminant, FALLBACK)

@@ -27,6 +27,7 @@ and then decode each file once.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -282,10 +283,16 @@ def read_image(
     if np.issubdtype(pixels.dtype, np.floating) and not np.all(np.isfinite(pixels)):
         raise ValueError(f"image: {path} contains NaN or infinite values")
     clip_level = level * (CLIP_FRACTION if saturation is None else 1.0)
-    # On the file's own codes, channel by channel: (H, W) booleans only (48-MP images).
-    clipped = pixels[..., 0] >= clip_level
-    clipped |= pixels[..., 1] >= clip_level
-    clipped |= pixels[..., 2] >= clip_level
+    # On the file's own codes, channel by channel: (H, W) booleans only (48-MP images). Integer
+    # codes compare with the smallest integer code at or above the level (same pixels, and no
+    # conversion of every code to float64 for the comparison).
+    integer = np.issubdtype(pixels.dtype, np.integer)
+    threshold = pixels.dtype.type(min(math.ceil(clip_level), full_scale)) if integer else clip_level
+    clipped = pixels[..., 0] >= threshold
+    clipped |= pixels[..., 1] >= threshold
+    clipped |= pixels[..., 2] >= threshold
+    if integer and math.ceil(clip_level) > full_scale:
+        clipped[:] = False  # a level above the format's maximum: no code reaches it
     if transparent is not None:
         if np.all(transparent):
             raise ValueError(f"image: every pixel of {path} is transparent (alpha below full opacity)")
