@@ -320,3 +320,47 @@ def test_material_options_are_validated(default_world):
         scenes.resolve_materials("yes", None)
     with pytest.raises(ValueError, match="fluorescent: expected True, None or a Fluorescent"):
         scenes.resolve_materials(None, scenes.Specular())
+
+
+def test_mondrian_materials(default_world, material_tables):
+    """Mondrians: fluorescent patches carry a fluorescent surface's RGB (times the patch shading),
+    metallic highlights are a multiple of one metal's RGB under the image's light, and the options
+    off leave every image unchanged."""
+    keys = scene_keys(jax.random.key(21), 0, 40)
+    render = lambda normalise=False, **options: scenes.mondrian_batch(
+        keys, material_tables, 24, 24, 9, normalise=normalise, **options
+    )
+    matte = render()
+    off = scenes.sample_mondrians(jax.random.key(21), default_world, 40, height=24, width=24, n_patches=9)
+    np.testing.assert_array_equal(np.asarray(off.image), np.asarray(render(normalise=True).image))
+    assert matte.fluorescent is None
+
+    mixed = render(fluorescent=scenes.Fluorescent(probability=0.5))
+    identity = np.asarray(mixed.fluorescent)
+    assert 0.35 < (identity >= 0).mean() < 0.65 and identity.max() < 9
+    light = np.argmin(
+        np.abs(np.asarray(matte.illuminant)[:, None] - np.asarray(material_tables.whites)[None]).sum(-1), axis=1
+    )
+    labels, image = np.asarray(mixed.labels), np.asarray(mixed.image)
+    shade = (
+        np.asarray(matte.image)
+        / np.asarray(material_tables.surface_rgb)[light[:, None], np.asarray(matte.surfaces)][
+            np.arange(40)[:, None, None], labels
+        ]
+    )  # the patch shading, per pixel (same render key, same shading)
+    fluorescent_rgb = np.asarray(material_tables.fluorescent_rgb)[light[:, None], np.maximum(identity, 0)]
+    want = np.where(
+        (identity >= 0)[np.arange(40)[:, None, None], labels][..., None],
+        fluorescent_rgb[np.arange(40)[:, None, None], labels] * shade,
+        np.asarray(matte.image),
+    )
+    np.testing.assert_allclose(image, want, rtol=1e-4, atol=1e-6)
+
+    metal = render(metallic=scenes.Metallic(probability=1.0))
+    diff = np.asarray(metal.image - matte.image, dtype=np.float64)  # (B, H, W, 3)
+    candidates = np.asarray(material_tables.metal_rgb, dtype=np.float64)[light]  # (B, M, 3)
+    unit = candidates / np.linalg.norm(candidates, axis=-1, keepdims=True)
+    cosine = np.einsum("bhwc,bmc->bhwm", diff, unit) / np.maximum(np.linalg.norm(diff, axis=-1), 1e-12)[..., None]
+    visible = np.linalg.norm(diff, axis=-1) > 1e-3
+    assert visible.mean() > 0.2 and np.all(cosine.max(axis=-1)[visible] > 1 - 1e-4)
+    assert np.isfinite(np.asarray(metal.image)).all()

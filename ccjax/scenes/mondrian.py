@@ -3,7 +3,10 @@ reflectances; Barnard 1999 §4.7 scenes laid out in space, for the image pipelin
 methods).
 
 Like the surface-list scenes, every image is a pure function of its key (image ``i`` uses
-``fold_in(key, i)``), so batches are reproducible whatever their chunking.
+``fold_in(key, i)``), so batches are reproducible whatever their chunking. The material options of
+:mod:`ccjax.scenes.surfaces` apply here too: fluorescent patches (:class:`Fluorescent`, §7.3) and
+metallic highlights (:class:`Metallic`, §8.3: a highlight blob coloured by the metal), their draws
+folded off the image key so that images without them are unchanged.
 """
 
 from __future__ import annotations
@@ -14,15 +17,23 @@ from typing import SupportsIndex
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float, Int, PRNGKeyArray
+from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
 from ccjax.scenes.surfaces import (
+    FLUORESCENT_STREAM,
+    METAL_STREAM,
+    Fluorescent,
+    Metallic,
+    RadianceModel,
     SceneKeys,
     SceneTables,
     ShotNoise,
     Specular,
+    default_fluorescent,
     draw_without_replacement,
     require_count,
+    require_tables,
+    resolve_materials,
     resolve_options,
     scene_keys,
 )
@@ -37,13 +48,17 @@ class MondrianImages(eqx.Module):
         illuminant: ``(B, 3)`` camera RGB of a perfect white under the image's light, on the
             image's scale (ground truth).
         labels: ``(B, H, W)`` patch index of every pixel.
-        surfaces: ``(B, P)`` reflectance index of every patch.
+        surfaces: ``(B, P)`` reflectance index of every patch (drawn even where the patch is
+            fluorescent).
+        fluorescent: ``(B, P)`` index into the fluorescent surfaces, -1 for an ordinary patch
+            (``None`` without the fluorescent option).
     """
 
     image: Float[Array, "*batch H W 3"]
     illuminant: Float[Array, "*batch 3"]
     labels: Int[Array, "*batch H W"]
     surfaces: Int[Array, "*batch P"]
+    fluorescent: Int[Array, "*batch P"] | None = None
 
 
 def _row_patch_counts(n_patches: int) -> list[int]:
@@ -81,6 +96,18 @@ def mondrian_layout(key: PRNGKeyArray, height: int, width: int, n_patches: int) 
     return labels
 
 
+def _highlight_blobs(labels: Int[Array, "H W"], n_patches: int, dtype) -> Float[Array, "H W"]:
+    """Per pixel, a Gaussian blob centred in its patch (width a quarter of the patch's size), peak 1."""
+    height, width = labels.shape
+    yy, xx = jnp.meshgrid(jnp.arange(height, dtype=dtype), jnp.arange(width, dtype=dtype), indexing="ij")
+    one_hot = (labels[..., None] == jnp.arange(n_patches)).astype(dtype)  # (H, W, P); counts exact
+    area = jnp.maximum(jnp.sum(one_hot, axis=(0, 1)), 1.0)
+    centre_y = jnp.sum(one_hot * yy[..., None], axis=(0, 1)) / area
+    centre_x = jnp.sum(one_hot * xx[..., None], axis=(0, 1)) / area
+    spread = jnp.maximum(0.25 * jnp.sqrt(area.astype(dtype)), 1.0)
+    return jnp.exp(-0.5 * ((yy - centre_y[labels]) ** 2 + (xx - centre_x[labels]) ** 2) / spread[labels] ** 2)
+
+
 def render_mondrian(
     key: PRNGKeyArray,
     labels: Int[Array, "H W"],
@@ -92,6 +119,8 @@ def render_mondrian(
     noise: ShotNoise | None = None,
     clip: float | None = None,
     normalise: bool = True,
+    metallic: Metallic | None = None,
+    metal_rgb: Float[Array, "M 3"] | None = None,
 ) -> tuple[Float[Array, "H W 3"], Float[Array, "3"]]:
     """Render one Mondrian image from per-patch RGBs.
 
@@ -101,12 +130,14 @@ def render_mondrian(
     the white (the dielectric model of §4.7, spread in space). With ``normalise`` the noise-free
     image is scaled so its brightest channel value is 1; ``noise`` adds Gaussian noise of variance
     ``a * rho + b`` (clamped at 0), after which the image is rescaled so its brightest value is
-    exactly 1 again. ``clip`` saturates values above the level (a camera's full well).
+    exactly 1 again. ``clip`` saturates values above the level (a camera's full well). With
+    ``metallic`` (and ``metal_rgb``, the metals' RGBs under the image's light), a patch gets, with
+    ``metallic.probability``, a blob of the same shape of peak ``U(0, metallic.max_amount) * s_i``
+    times a metal's RGB, the metal uniform over ``metal_rgb`` (§8.3).
 
     Returns:
         ``(image (H, W, 3), white (3,))``, the white on the image's scale.
     """
-    height, width = labels.shape
     n_patches = patch_rgb.shape[0]
     key_shade, key_spec, key_amount, key_noise = jax.random.split(key, 4)
     shade = jax.random.uniform(key_shade, (n_patches,), minval=shading[0], maxval=shading[1])
@@ -114,16 +145,18 @@ def render_mondrian(
     if specular is not None:
         is_specular = jax.random.uniform(key_spec, (n_patches,)) < specular.probability
         amount = jnp.where(is_specular, jax.random.uniform(key_amount, (n_patches,)) * specular.max_amount, 0.0) * shade
-        yy, xx = jnp.meshgrid(
-            jnp.arange(height, dtype=image.dtype), jnp.arange(width, dtype=image.dtype), indexing="ij"
-        )
-        one_hot = (labels[..., None] == jnp.arange(n_patches)).astype(image.dtype)  # (H, W, P); counts exact
-        area = jnp.maximum(jnp.sum(one_hot, axis=(0, 1)), 1.0)
-        centre_y = jnp.sum(one_hot * yy[..., None], axis=(0, 1)) / area
-        centre_x = jnp.sum(one_hot * xx[..., None], axis=(0, 1)) / area
-        spread = jnp.maximum(0.25 * jnp.sqrt(area.astype(image.dtype)), 1.0)
-        blob = jnp.exp(-0.5 * ((yy - centre_y[labels]) ** 2 + (xx - centre_x[labels]) ** 2) / spread[labels] ** 2)
+        blob = _highlight_blobs(labels, n_patches, image.dtype)
         image = image + (amount[labels] * blob)[..., None] * white
+    if metallic is not None:
+        if metal_rgb is None:
+            raise ValueError("metal_rgb: needed with metallic (the metals' RGBs under the image's light)")
+        key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
+        is_metal = jax.random.uniform(key_which, (n_patches,)) < metallic.probability
+        metal = jax.random.randint(key_metal, (n_patches,), 0, metal_rgb.shape[0])
+        strength = jax.random.uniform(key_strength, (n_patches,)) * metallic.max_amount
+        strength = jnp.where(is_metal, strength, 0.0) * shade
+        blob = _highlight_blobs(labels, n_patches, image.dtype)
+        image = image + (strength[labels] * blob)[..., None] * metal_rgb[metal][labels]
     if normalise:
         scale = 1.0 / jnp.maximum(jnp.max(image), 1e-12)
         image, white = image * scale, white * scale
@@ -138,7 +171,21 @@ def render_mondrian(
     return image, white
 
 
-@partial(jax.jit, static_argnames=("height", "width", "n_patches", "shading", "specular", "noise", "clip", "normalise"))
+@partial(
+    jax.jit,
+    static_argnames=(
+        "height",
+        "width",
+        "n_patches",
+        "shading",
+        "specular",
+        "noise",
+        "clip",
+        "normalise",
+        "metallic",
+        "fluorescent",
+    ),
+)
 def mondrian_batch(
     keys: SceneKeys,
     tables: SceneTables,
@@ -150,27 +197,42 @@ def mondrian_batch(
     noise: ShotNoise | None = None,
     clip: float | None = None,
     normalise: bool = True,
+    metallic: Metallic | None = None,
+    fluorescent: Fluorescent | None = None,
 ) -> MondrianImages:
     """Mondrians for a batch of per-image keys ``(B,)``: a test illuminant and ``n_patches``
-    reflectances (without replacement) per image, as :func:`sample_one` draws them."""
+    reflectances (without replacement) per image, as :func:`sample_one` draws them; with
+    ``fluorescent``, each patch is one of the tables' fluorescent surfaces with its probability."""
+    require_tables(tables, metallic, fluorescent)
 
     def one(key):
         key_light, key_surf, key_layout, key_render = jax.random.split(key, 4)
         light = jax.random.randint(key_light, (), 0, tables.surface_rgb.shape[0])
         surfaces = draw_without_replacement(key_surf, tables.surface_rgb.shape[1], n_patches)
         labels = mondrian_layout(key_layout, height, width, n_patches)
+        patch_rgb = tables.surface_rgb[light, surfaces]
+        identity = None
+        if fluorescent is not None:
+            assert tables.fluorescent_rgb is not None
+            key_which, key_identity = jax.random.split(jax.random.fold_in(key, FLUORESCENT_STREAM))
+            is_fluorescent = jax.random.uniform(key_which, (n_patches,)) < fluorescent.probability
+            drawn = jax.random.randint(key_identity, (n_patches,), 0, tables.fluorescent_rgb.shape[1])
+            patch_rgb = jnp.where(is_fluorescent[:, None], tables.fluorescent_rgb[light, drawn], patch_rgb)
+            identity = jnp.where(is_fluorescent, drawn, -1)
         image, white = render_mondrian(
             key_render,
             labels,
-            tables.surface_rgb[light, surfaces],
+            patch_rgb,
             tables.whites[light],
             shading=shading,
             specular=specular,
             noise=noise,
             clip=clip,
             normalise=normalise,
+            metallic=metallic,
+            metal_rgb=None if tables.metal_rgb is None else tables.metal_rgb[light],
         )
-        return MondrianImages(image=image, illuminant=white, labels=labels, surfaces=surfaces)
+        return MondrianImages(image=image, illuminant=white, labels=labels, surfaces=surfaces, fluorescent=identity)
 
     return jax.vmap(one)(keys)
 
@@ -188,6 +250,10 @@ def sample_mondrians(
     noise: ShotNoise | bool | None = None,
     clip: float | None = None,
     normalise: bool = True,
+    metallic: Metallic | bool | None = None,
+    fluorescent: Fluorescent | bool | None = None,
+    metals: Float[ArrayLike, "M 101"] | None = None,
+    fluorescent_surfaces: RadianceModel | None = None,
 ) -> MondrianImages:
     """Draw synthetic Mondrian images rendered from the world's spectra.
 
@@ -203,6 +269,13 @@ def sample_mondrians(
             image's scale, e.g. ``ShotNoise(a=1e-4, b=0)``).
         clip: saturation level on the image's scale (values above it are set to it).
         normalise: scale each image so its brightest value is 1.
+        metallic: ``True`` (§8.3: probability 0.25, up to 4 x a unit-mean metal spectrum) or a
+            :class:`Metallic`: metal-coloured highlight blobs.
+        fluorescent: ``True`` (§7.3: each patch fluorescent with probability 0.3) or a
+            :class:`Fluorescent`.
+        metals: metal spectra ``(M, 101)`` (default: the six of :func:`ccjax.materials.metal_spectra`).
+        fluorescent_surfaces: the fluorescent :class:`RadianceModel` (default: the nine synthetic
+            surfaces' physical model).
 
     Returns:
         :class:`MondrianImages`.
@@ -216,8 +289,24 @@ def sample_mondrians(
     if not 0 <= low <= high:
         raise ValueError(f"shading: expected 0 <= low <= high, got {shading!r}")
     specular, noise = resolve_options(specular, noise, clip)
-    tables = SceneTables.from_world(world)
+    metallic, fluorescent = resolve_materials(metallic, fluorescent)
+    tables = SceneTables.from_world(
+        world,
+        metals=(True if metals is None else metals) if metallic is not None else None,
+        fluorescent=default_fluorescent(fluorescent_surfaces) if fluorescent is not None else None,
+    )
     keys = scene_keys(key, 0, n_images)
     return mondrian_batch(
-        keys, tables, height, width, n_patches, (float(low), float(high)), specular, noise, clip, normalise
+        keys,
+        tables,
+        height,
+        width,
+        n_patches,
+        (float(low), float(high)),
+        specular,
+        noise,
+        clip,
+        normalise,
+        metallic,
+        fluorescent,
     )

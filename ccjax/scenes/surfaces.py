@@ -44,8 +44,8 @@ SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
 _FLOYD_MAX_SURFACES = 64
 # Streams folded off a scene key for the material options (never split from it: a split's
 # outputs depend on how many keys are asked for, so adding one would move every existing draw).
-_METAL_STREAM = 0x4D45  # "ME"
-_FLUORESCENT_STREAM = 0x464C  # "FL"
+METAL_STREAM = 0x4D45  # "ME"
+FLUORESCENT_STREAM = 0x464C  # "FL"
 
 
 class Scenes(eqx.Module):
@@ -326,7 +326,7 @@ def sample_one(
     noise, then clipping. ``metallic`` needs ``tables.metal_rgb``, ``fluorescent``
     ``tables.fluorescent_rgb`` (see :meth:`SceneTables.from_world`).
     """
-    _require_tables(tables, metallic, fluorescent)
+    require_tables(tables, metallic, fluorescent)
     n_lights, n_reflectances, _ = tables.surface_rgb.shape
     drawn = draw_scene(key, n_lights, n_reflectances, n_surfaces)
     light, surfaces = drawn.light, drawn.surfaces
@@ -336,7 +336,7 @@ def sample_one(
     canonical = tables.canonical_rgb[surfaces]
     if fluorescent is not None:
         assert tables.fluorescent_rgb is not None and tables.canonical_fluorescent_rgb is not None
-        key_which, key_identity = jax.random.split(jax.random.fold_in(key, _FLUORESCENT_STREAM))
+        key_which, key_identity = jax.random.split(jax.random.fold_in(key, FLUORESCENT_STREAM))
         is_fluorescent = jax.random.uniform(key_which, (n_surfaces,)) < fluorescent.probability
         identity = jax.random.randint(key_identity, (n_surfaces,), 0, tables.fluorescent_rgb.shape[1])
         rgb = jnp.where(is_fluorescent[:, None], tables.fluorescent_rgb[light, identity], rgb)
@@ -349,7 +349,7 @@ def sample_one(
     if metallic is not None:
         # §8.3 / A11: S' = S + s M, s ~ U(0, max_amount), M uniform over the tables' metals.
         assert tables.metal_rgb is not None and tables.canonical_metal_rgb is not None
-        key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, _METAL_STREAM), 3)
+        key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
         is_metal = jax.random.uniform(key_which, (n_surfaces,)) < metallic.probability
         metal = jax.random.randint(key_metal, (n_surfaces,), 0, tables.metal_rgb.shape[1])
         strength = jnp.where(is_metal, jax.random.uniform(key_strength, (n_surfaces,)) * metallic.max_amount, 0.0)
@@ -364,7 +364,8 @@ def sample_one(
     return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
 
 
-def _require_tables(tables: SceneTables, metallic: Metallic | None, fluorescent: Fluorescent | None) -> None:
+def require_tables(tables: SceneTables, metallic: Metallic | None, fluorescent: Fluorescent | None) -> None:
+    """A ``ValueError`` naming the option when ``tables`` lack the colours it needs."""
     if metallic is not None and tables.metal_rgb is None:
         raise ValueError(
             "metallic: the scene tables have no metals; build them with SceneTables.from_world(world, metals=True)"
@@ -459,13 +460,14 @@ def sample(
     tables = SceneTables.from_world(
         world,
         metals=(True if metals is None else metals) if metallic is not None else None,
-        fluorescent=_default_fluorescent(fluorescent_surfaces) if fluorescent is not None else None,
+        fluorescent=default_fluorescent(fluorescent_surfaces) if fluorescent is not None else None,
     )
     keys = scene_keys(key, 0, n_scenes)
     return sample_batch(keys, tables, n_surfaces, specular, noise, clip, metallic, fluorescent)
 
 
-def _default_fluorescent(model: RadianceModel | None) -> RadianceModel:
+def default_fluorescent(model: RadianceModel | None) -> RadianceModel:
+    """``model``, or the default fluorescent surfaces (the nine synthetic ones' physical model)."""
     if model is not None:
         return model
     from ccjax.materials.fluorescence import synthetic_fluorescent_surfaces
