@@ -184,3 +184,42 @@ def test_extended_estimates_are_finite_on_degenerate_scenes(default_world):
     assert np.all(np.isfinite(np.asarray(out.illuminant)))
     assert not bool(out.ok[0]) and not bool(out.ok[3])
     assert int(out.status[0]) == int(out.status[3]) == Status.NO_DATA
+
+
+@pytest.mark.slow
+def test_chapter8_columns_reuse_the_chapter4_scenes(default_world):
+    """Table 8.2's columns 1-3 are Tables 4.2, 4.3 and 4.4 (clip 300) on the same scene draws (§8.3),
+    so their cells agree to 1e-6 for the same key."""
+    from ccjax import experiments
+
+    key, methods = jax.random.key(3), ["GW", "RETINEX"]
+    ours = {
+        (r["method"], r["column"]): r["ours"]
+        for r in experiments.reproduce("8.2", default_world, methods, 24, key, progress=False).rows
+    }
+    chapter4 = {}
+    for table, column in (("4.2", "rg"), ("4.3", "rg"), ("4.4", "rg@300")):
+        for r in experiments.reproduce(table, default_world, methods, 24, key, progress=False).rows:
+            if r["column"] == column:
+                chapter4[(r["method"], table)] = r["ours"]
+    for method in methods:
+        for table, column in (("4.2", "rg@matte"), ("4.3", "rg@spec"), ("4.4", "rg@spec+clip")):
+            np.testing.assert_allclose(ours[(method, column)], chapter4[(method, table)], rtol=1e-6)
+    # The metallic columns are other scenes (highlights coloured by metals): different numbers.
+    assert abs(ours[("GW", "rg@metal")] - ours[("GW", "rg@spec")]) > 1e-4
+
+
+def test_claims_print_ok_or_miss():
+    from ccjax.experiments.protocols import check_claim
+
+    ours = {("A", "c"): 0.04, ("B", "c"): 0.05, ("ECRULE-MV", "c"): 0.045, ("X-ECRULE-ICA", "c"): 0.03}
+    assert check_claim(("less", "A", "B", "c"), ours).endswith(": ok")
+    assert check_claim(("less", "B", "A", "c"), ours).endswith(": MISS")
+    assert check_claim(("ratio", "B", "A", "c", 1.15), ours).endswith(": MISS")  # 1.25 > 1.15
+    assert check_claim(("ratio", "B", "A", "c", 1.3), ours).endswith(": ok")
+    assert check_claim(("best", ("X-ECRULE-ICA",), "gamut", "c"), ours).endswith(": ok")
+    assert check_claim(("best", ("ECRULE-MV",), "gamut", "c"), ours).endswith(": MISS")
+    assert check_claim(("less", "A", "missing", "c"), ours) is None
+    spread = {("S", f"k{i}"): v for i, v in enumerate((100.0, 140.0, 120.0))}
+    assert check_claim(("spread", "S", ("k0", "k1", "k2"), 1.0, 1.5), spread).endswith("1.40 in [1, 1.5]: ok")
+    assert check_claim(("spread", "S", ("k0", "k1", "k2"), 3.0, float("inf")), spread).endswith(">= 3: MISS")

@@ -10,12 +10,23 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import equinox as eqx
 import jax
 import numpy as np
+from tqdm.auto import tqdm
 
+from ccjax import scenes
 from ccjax.estimators import registry
 from ccjax.experiments.reports import Column, Report
-from ccjax.experiments.sweeps import RGB_VALUED, STATISTICS, is_registered, sweep
+from ccjax.experiments.sweeps import (
+    BRIGHTNESS_STATISTICS,
+    RGB_VALUED,
+    STATISTICS,
+    SweepResult,
+    is_registered,
+    resolve_methods,
+    scene_errors,
+)
 from ccjax.world import World
 
 
@@ -46,17 +57,17 @@ CLIP_300 = 300 / 255.0
 """Chapter 8's clip level (300 in thesis units; Table 8.2 column 3 equals Table 4.4's 300 column)."""
 
 
-def _chapter8_conditions(statistic: str) -> list[Condition]:
-    """Tables 8.2 / 8.3's five conditions (§8.3), one statistic each: matte; dielectric
-    specularities; the same clipped at 300; metallic specularities (25 %, ``U(0, 4)`` x a metal
-    spectrum drawn from every metal, A11); the same clipped."""
+def _chapter8_conditions(statistic: str, name: str) -> list[Condition]:
+    """Tables 8.2 / 8.3's five conditions (§8.3), one statistic each (columns ``name@...``):
+    matte; dielectric specularities ("spec"); the same clipped at 300; metallic specularities
+    ("metal": 25 %, ``U(0, 4)`` x a metal spectrum drawn from every metal, A11); the same clipped."""
     metallic = (("metallic", True),)
     return [
-        Condition(8, {f"{statistic}@matte": statistic}),
-        Condition(8, {f"{statistic}@specular": statistic}, specular=True),
-        Condition(8, {f"{statistic}@specular+clip": statistic}, specular=True, clip=CLIP_300),
-        Condition(8, {f"{statistic}@metallic": statistic}, scene_options=metallic),
-        Condition(8, {f"{statistic}@metallic+clip": statistic}, clip=CLIP_300, scene_options=metallic),
+        Condition(8, {f"{name}@matte": statistic}),
+        Condition(8, {f"{name}@spec": statistic}, specular=True),
+        Condition(8, {f"{name}@spec+clip": statistic}, specular=True, clip=CLIP_300),
+        Condition(8, {f"{name}@metal": statistic}, scene_options=metallic),
+        Condition(8, {f"{name}@metal+clip": statistic}, clip=CLIP_300, scene_options=metallic),
     ]
 
 
@@ -83,8 +94,8 @@ PROTOCOLS: dict[str, list[Condition]] = {
     ],
     # Tables 8.2 and 8.3 (§8.3): 8 surfaces under five conditions; the first three are exactly
     # Table 4.2's, 4.3's and 4.4's (clip 300) sweeps, so the same key gives the same scenes.
-    "8.2": _chapter8_conditions("rg"),
-    "8.3": _chapter8_conditions("brightness"),
+    "8.2": _chapter8_conditions("rg", "rg"),
+    "8.3": _chapter8_conditions("brightness", "sum"),
     # Table 10.1 (§10.3): 8 surfaces, matte and specular worlds (rg only; fluorescent column later).
     "10.1": [Condition(8, {"rg@matte": "rg"}), Condition(8, {"rg@specular": "rg"}, specular=True)],
     # Table 10.2 (§10.3): 8 matte surfaces.
@@ -164,6 +175,86 @@ class Reproduction:
         return lines
 
 
+_scene_errors = eqx.filter_jit(scene_errors)
+# Chunks of this many scenes: every chunk has the same shape, so each model compiles once per
+# number of surfaces for all the conditions of a table.
+_CHUNK = 1000
+
+
+def run_conditions(
+    world: World, fitted: list, conditions: Sequence[Condition], n_scenes: int, key: jax.Array, progress: bool = True
+) -> list[SweepResult]:
+    """Every model on every condition's scenes, the scene draws shared across conditions.
+
+    A condition's scenes come from the sweep's keys (:func:`ccjax.scenes.sweep_keys`: the stream of
+    its number of surfaces), so conditions differing only in specularities, metals, fluorescent
+    surfaces or clipping see the same lights and surfaces, as the thesis' chapter-8 runs did
+    (Table 8.2's columns 1-3 are Tables 4.2-4.4's scenes), and equal ``ccjax compare``'s
+    scenes for the same key. The scenes are drawn in one compiled function and every model
+    evaluated in its own, so a model compiles once for all conditions with the same shape.
+
+    Arguments:
+        world: the world.
+        fitted: ``(label, surface estimator)`` pairs.
+        conditions: the table's :class:`Condition` list.
+        n_scenes: scenes per condition.
+        key: the sweep key.
+        progress: show a progress bar.
+
+    Returns:
+        One :class:`~ccjax.experiments.sweeps.SweepResult` per condition (one surface count each).
+    """
+    tables: dict = {}
+    results = []
+    bar = tqdm(total=len(conditions) * len(fitted), desc="reproduce", disable=not progress, leave=False)
+    for condition in conditions:
+        options = dict(condition.scene_options)
+        specular, noise = scenes.resolve_options(condition.specular, condition.noise, condition.clip)
+        metallic, fluorescent = scenes.resolve_materials(
+            options.pop("metallic", None), options.pop("fluorescent", None)
+        )
+        if options:
+            raise ValueError(f"condition: unknown scene options {sorted(options)}")
+        need = (metallic is not None, fluorescent is not None)
+        if need not in tables:
+            # Test scenes: the six metals (A11) and the fluorescent surfaces' physical model (the
+            # truth; the FL algorithms know only its characterisation).
+            from ccjax import materials
+
+            tables[need] = scenes.SceneTables.from_world(
+                world,
+                metals=True if need[0] else None,
+                fluorescent=materials.synthetic_fluorescent_surfaces() if need[1] else None,
+            )
+        n = condition.n_surfaces
+        size = min(_CHUNK, n_scenes)
+        chunks = [
+            scenes.sample_batch(
+                scenes.sweep_keys(key, n, start, size),
+                tables[need],
+                n,
+                specular,
+                noise,
+                condition.clip,
+                metallic,
+                fluorescent,
+            )
+            for start in range(0, n_scenes, size)
+        ]
+        result = SweepResult(methods=[label for label, _ in fitted], surfaces=[n], n_scenes=n_scenes)
+        for label, model in fitted:
+            parts = [jax.device_get(_scene_errors(model, chunk, tables[need].canonical_white)) for chunk in chunks]
+            result.errors.setdefault(label, {})[n] = {
+                name: np.concatenate([part[name] for part in parts])[:n_scenes]
+                for name in parts[0]
+                if model.estimates_brightness or name not in BRIGHTNESS_STATISTICS
+            }
+            bar.update()
+        results.append(result)
+    bar.close()
+    return results
+
+
 def check_claim(claim: tuple, ours: dict) -> str | None:
     """One claim of ``thesis.CHECKS`` on ``ours`` (``(method, column) -> value``): a line ending
     in ``ok`` or ``MISS``, or ``None`` when a cell it needs is missing.
@@ -240,21 +331,12 @@ def reproduce(
     if unknown:
         raise ValueError(f"methods: {unknown} are not rows of Table {table}")
     # Fit once for all conditions (the registry's in-process memo).
-    fitted = [(method, registry.fit_cached(method, world)) for method in methods]
+    fitted = resolve_methods(world, [(method, registry.fit_cached(method, world)) for method in methods])
+    key = jax.random.key(0) if key is None else key
     rows = []
-    for condition in PROTOCOLS[table]:
-        result = sweep(
-            world,
-            fitted,
-            [condition.n_surfaces],
-            n_scenes,
-            key,
-            specular=condition.specular,
-            noise=condition.noise,
-            clip=condition.clip,
-            progress=progress,
-            **dict(condition.scene_options),
-        )
+    for condition, result in zip(
+        PROTOCOLS[table], run_conditions(world, fitted, PROTOCOLS[table], n_scenes, key, progress)
+    ):
         for method in methods:
             for column, statistic in condition.columns.items():
                 if column not in targets[method] or statistic not in result.errors[method][condition.n_surfaces]:
