@@ -1,4 +1,6 @@
-"""``ccjax train-net``: train the neural-net estimator and cache its weights (Barnard 1999 §4.5.5)."""
+"""``ccjax train``: train an estimator on photographs with ground truth (optionally cross-validated)
+or, for the thesis' nets, on synthetic scenes (Barnard 1999 §4.5.5; what ``train-net`` did, kept
+as an alias)."""
 
 from __future__ import annotations
 
@@ -6,28 +8,49 @@ import sys
 
 from ccjax.cli.common import build_world, world_arguments
 
+NETS = ("NEURAL-NET", "SP-NEURAL-NET")
+
+
+def add_train(sub) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train an estimator on images with ground truth (or the thesis nets on synthetic scenes)",
+        description="Train the learnable parameters of a differentiable estimator on a folder of images "
+        "with ground truth: the Colour by Correlation matrices (C-by-C-MMSE, RGB-C-by-C-MMSE, soft- variants; "
+        "started from the camera's spectral fit), grey edge's Minkowski norm, or the nets. Adam (optax) on the "
+        "angular error, von Kries relighting to other training lights, held-out error per epoch and early "
+        "stopping. --folds K first reports K-fold cross-validated errors (folds from the CSV's fold column when "
+        "it has one). Without DIR, --method NEURAL-NET / SP-NEURAL-NET trains the thesis net on synthetic "
+        "scenes and caches its weights (what train-net does).",
+    )
+    p.add_argument("directory", nargs="?", default=None, help="image folder (omit for the nets' synthetic training)")
+    p.add_argument("--ground-truth", default=None, help="CSV image,r,g,b[,fold] (default: DIR/groundtruth.csv)")
+    p.add_argument("--method", required=True, help="registry label, e.g. RGB-C-by-C-MMSE")
+    p.add_argument("--folds", type=int, default=None, help="cross-validate with K folds first")
+    p.add_argument("--out", default=None, help="model file to write (.eqx, with a .json record beside it)")
+    p.add_argument("--epochs", type=int, default=None, help="epochs at most (default: 30)")
+    p.add_argument("--batch-size", type=int, default=None, help="images per step (default: 32; nets: 256 scenes)")
+    p.add_argument("--learning-rate", type=float, default=None, help="Adam step size (default: 0.05)")
+    p.add_argument("--patience", type=int, default=None, help="epochs without improvement before stopping (4)")
+    p.add_argument("--steps", type=int, default=None, help="nets only: optimiser steps (default: 3000)")
+    p.add_argument("--specular", action="store_true", help="nets only: same as --method SP-NEURAL-NET")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    world_arguments(p)
+    p.set_defaults(func=run_train)
+
 
 def add_train_net(sub) -> None:
     p = sub.add_parser(
         "train-net",
-        help="train the neural-net estimator for a world and cache its weights",
+        help="train the neural-net estimator for a world and cache its weights (alias of train --method NEURAL-NET)",
         description="Train NEURAL-NET (or SP-NEURAL-NET with --specular) on synthetic scenes of the world's training "
         "illuminants (Barnard 1999 §4.5.5) and save the weights in the cache ($CCJAX_CACHE, else the user "
-        "cache directory).",
+        "cache directory). Same as `ccjax train --method NEURAL-NET`.",
     )
     world_arguments(p)
-    p.add_argument(
-        "--specular",
-        action="store_true",
-        help="train SP-NEURAL-NET (specular training scenes) instead of NEURAL-NET",
-    )
+    p.add_argument("--specular", action="store_true", help="train SP-NEURAL-NET instead of NEURAL-NET")
     p.add_argument("--steps", type=int, default=None, help="optimiser steps (default: 3000)")
-    p.add_argument(
-        "--batch-size",
-        type=int,
-        default=None,
-        help="training scenes per step (default: 256)",
-    )
+    p.add_argument("--batch-size", type=int, default=None, help="training scenes per step (default: 256)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.set_defaults(func=run_train_net)
 
@@ -55,4 +78,63 @@ def run_train_net(args) -> int:
     return 0
 
 
-COMMANDS = [add_train_net]
+def run_train(args) -> int:
+    import dataclasses
+    from pathlib import Path
+
+    if args.directory is None:
+        if args.method not in NETS and not args.specular:
+            raise SystemExit(
+                f"train: give an image folder to train {args.method} (only {', '.join(NETS)} train without one)"
+            )
+        args.specular = args.specular or args.method == "SP-NEURAL-NET"
+        return run_train_net(args)
+    if args.world != "default":
+        raise SystemExit(
+            "train: --world applies to the nets' synthetic training; images train from --camera's default world"
+        )
+    from ccjax import training
+    from ccjax.estimators import registry
+
+    registry.lookup(args.method)  # an unknown label fails before any image is read
+    directory = Path(args.directory)
+    truth = Path(args.ground_truth) if args.ground_truth else directory / "groundtruth.csv"
+    changes = {
+        name: value
+        for name, value in (
+            ("epochs", args.epochs),
+            ("batch_size", args.batch_size),
+            ("learning_rate", args.learning_rate),
+            ("patience", args.patience),
+        )
+        if value is not None
+    }
+    schedule = dataclasses.replace(training.Schedule(seed=args.seed), **changes)
+    camera = args.camera or "Canon EOS 5D Mark II"
+    print(f"training {args.method} on {directory} (camera {camera}, start: its spectral fit)", file=sys.stderr)
+    model, log, folds = training.train_on_images(
+        directory,
+        truth,
+        args.method,
+        camera=camera,
+        folds=args.folds,
+        fold_seed=args.seed,
+        schedule=schedule,
+        out=args.out,
+        progress=not args.no_progress,
+    )
+    del model
+    if folds is not None:
+        print(folds.table())
+    print(
+        f"{args.method}: held-out median angular error {log.initial_median:.3f} -> "
+        f"{min([log.initial_median, *log.heldout_median]):.3f} deg (best epoch {log.best_epoch} of "
+        f"{len(log.heldout_median)}{', stopped early' if log.stopped_early else ''}; {log.n_train} training, "
+        f"{log.n_heldout} held-out images) in {log.seconds:.1f} s"
+    )
+    if args.out:
+        print(f"saved {args.out}")
+    return 0
+
+
+COMMANDS = [add_train, add_train_net]

@@ -1,0 +1,94 @@
+"""Training examples from a folder of images with ground truth: the estimator's input (surface lists
+through the same preprocessing ``ccjax evaluate`` uses, or whole images) stacked into fixed-shape
+arrays so a training step is one compiled function."""
+
+from __future__ import annotations
+
+import os
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+from tqdm.auto import tqdm
+
+from ccjax.io.ground_truth import match_ground_truth, read_ground_truth
+from ccjax.io.reading import read_image
+from ccjax.preprocessing import DEFAULT_DARK, DEFAULT_PREPROCESSING, Preprocessing, surfaces
+
+
+class Examples(eqx.Module):
+    """A set of training examples with ground truth.
+
+    Attributes:
+        x: ``(N, P, 3)`` padded surface lists or ``(N, H, W, 3)`` images.
+        mask: ``(N, P)`` / ``(N, H, W)`` valid entries.
+        illuminant: ``(N, 3)`` the true lights (camera RGB of white).
+        names: the image names (ground-truth rows), in order.
+    """
+
+    x: Float[Array, "N *item 3"]
+    mask: Bool[Array, "N ..."]
+    illuminant: Float[Array, "N 3"]
+    names: tuple[str, ...] = eqx.field(static=True, default=())
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+    def take(self, indices) -> Examples:
+        """The examples at ``indices`` (a 1-D integer array)."""
+        indices = np.asarray(indices, np.int64)
+        names = tuple(self.names[i] for i in indices) if self.names else ()
+        return Examples(self.x[indices], self.mask[indices], self.illuminant[indices], names)
+
+
+def load_examples(
+    directory: str | os.PathLike,
+    ground_truth: str | os.PathLike,
+    input_kind: str = "surfaces",
+    *,
+    preprocessing: str | Preprocessing = DEFAULT_PREPROCESSING,
+    dark: float = DEFAULT_DARK,
+    progress: bool = False,
+) -> Examples:
+    """Read every image of ``ground_truth`` from ``directory`` once and build the estimator input.
+
+    Arguments:
+        directory: the image folder.
+        ground_truth: CSV ``image,r,g,b[,...]`` (:func:`ccjax.io.read_ground_truth`).
+        input_kind: ``"surfaces"`` (preprocessed surface lists, padded to the longest one) or
+            ``"image"`` (the images themselves, which must share one size; mask = not clipped).
+        preprocessing, dark: the surface-list preprocessing (:func:`ccjax.preprocessing.surfaces`).
+        progress: show a progress bar.
+
+    Returns:
+        :class:`Examples` in ground-truth order.
+    """
+    if input_kind not in ("surfaces", "image"):
+        raise ValueError(f"input_kind: expected 'surfaces' or 'image', got {input_kind!r}")
+    truth = read_ground_truth(ground_truth)
+    pairs = match_ground_truth(truth, directory)
+    inputs, masks = [], []
+    for path, _ in tqdm(pairs, desc="reading", unit="image", disable=not progress, leave=False):
+        image = read_image(path)
+        if input_kind == "image":
+            inputs.append(np.asarray(image.rgb, np.float32))
+            masks.append(~np.asarray(image.clipped))
+        else:
+            rgb, mask = surfaces(image, preprocessing, dark=dark)
+            inputs.append(rgb)
+            masks.append(mask)
+    if input_kind == "image":
+        shapes = {x.shape for x in inputs}
+        if len(shapes) > 1:
+            raise ValueError(f"images: training an image estimator needs images of one size, got {sorted(shapes)}")
+        x, mask = np.stack(inputs), np.stack(masks)
+    else:
+        size = max(len(m) for m in masks)
+        x = np.zeros((len(inputs), size, 3), np.float32)
+        mask = np.zeros((len(inputs), size), bool)
+        for index, (rgb, valid) in enumerate(zip(inputs, masks)):
+            x[index, : len(rgb)], mask[index, : len(valid)] = rgb, valid
+    illuminant = np.stack([light for _, light in pairs]).astype(np.float32)
+    names = tuple(truth)
+    return Examples(jnp.asarray(x), jnp.asarray(mask), jnp.asarray(illuminant), names)

@@ -1,0 +1,271 @@
+"""Training estimators on image sets with K-fold cross-validation: reproducible fold assignment (or
+a ``fold`` column of the ground-truth CSV, as in the Gehler–Shi three-fold split), training within
+folds (never on the fold that is scored), and the model files."""
+
+from __future__ import annotations
+
+import csv
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ccjax._cache import FORMAT_VERSION, read_model_metadata, save_model
+from ccjax._cache import load_model as load_leaves
+from ccjax.estimators.base import AbstractEstimator
+from ccjax.training.data import Examples, load_examples
+from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples
+
+
+def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:
+    """The ``fold`` column of a ground-truth CSV (header ``image,r,g,b,...,fold``), or ``None``
+    when it has none.
+
+    Returns:
+        ``{image name: fold}`` with the file's fold labels (any integers).
+    """
+    with open(ground_truth, newline="", encoding="utf-8-sig") as handle:
+        reader = csv.DictReader(handle)
+        names = [name.strip().lower() for name in reader.fieldnames or []]
+        if "fold" not in names:
+            return None
+        image_column = (reader.fieldnames or [])[0]
+        fold_column = (reader.fieldnames or [])[names.index("fold")]
+        folds = {}
+        for row in reader:
+            try:
+                folds[row[image_column].strip()] = int(row[fold_column])
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"ground truth: {ground_truth} line {reader.line_num}: fold must be an integer, "
+                    f"got {row[fold_column]!r}"
+                ) from None
+    return folds
+
+
+def assign_folds(names, k: int, *, seed: int = 0, given: dict[str, int] | None = None) -> np.ndarray:
+    """Fold of every example, ``0 .. k-1``.
+
+    Arguments:
+        names: the examples' image names, in order.
+        k: number of folds (>= 2).
+        seed: seed of the random assignment (a permutation cut into ``k`` near-equal parts).
+        given: ``{name: fold label}`` (from :func:`read_folds`); its ``k`` distinct labels are
+            numbered in sorted order.
+
+    Returns:
+        ``(N,)`` int fold indices.
+    """
+    names = list(names)
+    if isinstance(k, bool) or not isinstance(k, int) or k < 2:
+        raise ValueError(f"folds: expected an integer >= 2, got {k!r}")
+    if len(names) < k:
+        raise ValueError(f"folds: {k} folds need at least {k} images, got {len(names)}")
+    if given is not None:
+        missing = [name for name in names if name not in given]
+        if missing:
+            raise ValueError(f"fold column: no fold for {len(missing)} images, e.g. {missing[:3]}")
+        labels = sorted({given[name] for name in names})
+        if len(labels) != k:
+            raise ValueError(f"fold column: has {len(labels)} distinct folds {labels}, but --folds is {k}")
+        return np.array([labels.index(given[name]) for name in names])
+    folds = np.empty(len(names), int)
+    folds[np.random.default_rng(seed).permutation(len(names))] = np.arange(len(names)) % k
+    return folds
+
+
+@dataclass
+class FoldResult:
+    """One fold: its test examples' errors for the trained and the untrained (start) model."""
+
+    fold: int
+    test_names: list[str]
+    trained_errors: np.ndarray
+    untrained_errors: np.ndarray
+    log: TrainingLog
+
+    def summary(self) -> dict:
+        return {
+            "fold": self.fold,
+            "n_test": len(self.test_names),
+            "trained_median": float(np.median(self.trained_errors)),
+            "trained_mean": float(np.mean(self.trained_errors)),
+            "untrained_median": float(np.median(self.untrained_errors)),
+            "untrained_mean": float(np.mean(self.untrained_errors)),
+            "train_seconds": self.log.seconds,
+            "best_epoch": self.log.best_epoch,
+        }
+
+
+@dataclass
+class CrossValidation:
+    """K-fold results and the pooled errors (every example scored once, by the model trained
+    without its fold)."""
+
+    method: str
+    folds: list[FoldResult] = field(default_factory=list)
+
+    def pooled(self, which: str = "trained") -> np.ndarray:
+        return np.concatenate([getattr(fold, f"{which}_errors") for fold in self.folds])
+
+    def table(self) -> str:
+        lines = [
+            f"{self.method}: angular error (degrees), trained within folds vs the spectral fit",
+            f"{'fold':>6}{'images':>8}{'trained median':>16}{'mean':>8}{'untrained median':>18}{'mean':>8}"
+            f"{'train s':>9}{'epoch':>7}",
+        ]
+        for result in self.folds:
+            row = result.summary()
+            lines.append(
+                f"{row['fold']:>6}{row['n_test']:>8}{row['trained_median']:>16.3f}{row['trained_mean']:>8.3f}"
+                f"{row['untrained_median']:>18.3f}{row['untrained_mean']:>8.3f}{row['train_seconds']:>9.1f}"
+                f"{row['best_epoch']:>7}"
+            )
+        trained, untrained = self.pooled("trained"), self.pooled("untrained")
+        lines.append(
+            f"{'pooled':>6}{len(trained):>8}{np.median(trained):>16.3f}{np.mean(trained):>8.3f}"
+            f"{np.median(untrained):>18.3f}{np.mean(untrained):>8.3f}"
+        )
+        return "\n".join(lines)
+
+
+def cross_validate(
+    model: AbstractEstimator,
+    examples: Examples,
+    folds: np.ndarray,
+    schedule: Schedule | None = None,
+    *,
+    method: str = "",
+    progress: bool = True,
+) -> tuple[CrossValidation, list[AbstractEstimator]]:
+    """Train ``model`` once per fold on the other folds' examples and score it on the fold.
+
+    Arguments:
+        model: the fitted start model (the same start for every fold).
+        examples: all examples.
+        folds: ``(N,)`` fold index of each example (:func:`assign_folds`).
+        schedule: the training schedule (default :class:`Schedule`; its held-out split is taken
+            from the training folds).
+        method: the label, for the report.
+        progress: progress bars.
+
+    Returns:
+        ``(CrossValidation, the K trained models)``.
+    """
+    schedule = schedule or Schedule()
+    folds = np.asarray(folds)
+    if folds.shape != (len(examples),):
+        raise ValueError(f"folds: expected shape ({len(examples)},), got {folds.shape}")
+    untrained = angular_errors(model, examples)
+    result, models = CrossValidation(method=method), []
+    for fold in np.unique(folds):
+        test = np.flatnonzero(folds == fold)
+        train = np.flatnonzero(folds != fold)
+        trained, log = fit_to_examples(model, examples.take(train), schedule, progress=progress)
+        errors = angular_errors(trained, examples.take(test))
+        names = [examples.names[i] for i in test] if examples.names else [str(i) for i in test]
+        result.folds.append(FoldResult(int(fold), names, errors, untrained[test], log))
+        models.append(trained)
+    return result, models
+
+
+# ---------------------------------------------------------------------------------------------
+# model files (the house format: leaves + a versioned JSON record, ccjax._cache.save_model)
+
+
+def save_trained(
+    path: str | os.PathLike,
+    model: AbstractEstimator,
+    *,
+    label: str,
+    camera: str,
+    world_seed: int = 0,
+    schedule: Schedule | None = None,
+    log: TrainingLog | None = None,
+) -> Path:
+    """Write a trained model: its leaves and a JSON record (format version, label, the camera and
+    world seed its start was fitted to, the schedule and training log).
+
+    Returns:
+        The model file's path.
+    """
+    metadata = {
+        "kind": "trained-estimator",
+        "label": label,
+        "camera": camera,
+        "world_seed": int(world_seed),
+        "schedule": asdict(schedule) if schedule is not None else None,
+        "log": log.as_dict() if log is not None else None,
+    }
+    return save_model(Path(path), model, metadata)
+
+
+def load_model(path: str | os.PathLike) -> AbstractEstimator:
+    """Read a model written by :func:`save_trained` (format :data:`ccjax._cache.FORMAT_VERSION`):
+    its skeleton is the label fitted to the recorded camera's default world, its leaves the file's.
+
+    Raises:
+        ValueError: not a trained-model file, another format version, or leaves that do not fit.
+    """
+    from ccjax.estimators.registry import fit_cached
+    from ccjax.world import World
+
+    path = Path(path)
+    record = read_model_metadata(path)
+    if record.get("kind") != "trained-estimator" or "label" not in record:
+        raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
+    world = World.default(record["camera"], seed=int(record.get("world_seed", 0)))
+    skeleton = fit_cached(record["label"], world)
+    return load_leaves(path, skeleton)
+
+
+def train_on_images(
+    directory: str | os.PathLike,
+    ground_truth: str | os.PathLike,
+    method: str,
+    *,
+    camera: str = "Canon EOS 5D Mark II",
+    world_seed: int = 0,
+    folds: int | None = None,
+    fold_seed: int = 0,
+    schedule: Schedule | None = None,
+    out: str | os.PathLike | None = None,
+    progress: bool = True,
+) -> tuple[AbstractEstimator, TrainingLog, CrossValidation | None]:
+    """Train the estimator ``method`` on a folder of images with ground truth.
+
+    The start is ``method`` fitted to ``World.default(camera)`` (the physics: e.g. the Colour by
+    Correlation matrix from the camera's curves); its learnable parameters are trained
+    (:func:`fit_to_examples`). With ``folds``, it is first cross-validated (folds from the CSV's
+    ``fold`` column when present, else a seeded random assignment); the returned model is then
+    trained on every image.
+
+    Arguments:
+        directory: the image folder; ground_truth: its CSV.
+        method: a registry label of a trainable family.
+        camera: camera of the default world the start is fitted to.
+        world_seed: that world's seed.
+        folds: number of cross-validation folds (``None``: none).
+        fold_seed: seed of the random fold assignment.
+        schedule: training schedule (default :class:`Schedule`).
+        out: where to save the final model (``None``: not saved).
+        progress: progress bars.
+
+    Returns:
+        ``(trained model, its TrainingLog, CrossValidation or None)``.
+    """
+    from ccjax.estimators.registry import fit_cached
+    from ccjax.world import World
+
+    schedule = schedule or Schedule()
+    start = fit_cached(method, World.default(camera, seed=world_seed))
+    examples = load_examples(directory, ground_truth, start.input_kind, progress=progress)
+    validation = None
+    if folds is not None:
+        assignment = assign_folds(examples.names, folds, seed=fold_seed, given=read_folds(ground_truth))
+        validation, _ = cross_validate(start, examples, assignment, schedule, method=method, progress=progress)
+    model, log = fit_to_examples(start, examples, schedule, progress=progress)
+    if out is not None:
+        save_trained(out, model, label=method, camera=camera, world_seed=world_seed, schedule=schedule, log=log)
+    return model, log, validation
