@@ -96,8 +96,12 @@ PROTOCOLS: dict[str, list[Condition]] = {
     # Table 4.2's, 4.3's and 4.4's (clip 300) sweeps, so the same key gives the same scenes.
     "8.2": _chapter8_conditions("rg", "rg"),
     "8.3": _chapter8_conditions("brightness", "sum"),
-    # Table 10.1 (§10.3): 8 surfaces, matte and specular worlds (rg only; fluorescent column later).
-    "10.1": [Condition(8, {"rg@matte": "rg"}), Condition(8, {"rg@specular": "rg"}, specular=True)],
+    # Table 10.1 (§10.3): 8 surfaces, matte, fluorescent (p = 0.15 per surface, A17) and specular worlds (rg only).
+    "10.1": [
+        Condition(8, {"rg@matte": "rg"}),
+        Condition(8, {"rg@fluorescent": "rg"}, scene_options=(("fluorescent", scenes.Fluorescent(probability=0.15)),)),
+        Condition(8, {"rg@specular": "rg"}, specular=True),
+    ],
     # Table 10.2 (§10.3): 8 matte surfaces.
     "10.2": [Condition(8, {"rg": "rg"})],
 }
