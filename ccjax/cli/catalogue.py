@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import sys
-
-from ccjax.cli.common import build_world, world_arguments
+from ccjax.cli.common import build_world, check_camera_name, check_plot, world_arguments, write_plot
 
 
 def add_world(sub) -> None:
@@ -23,6 +21,8 @@ def run_world(args) -> int:
 
     from ccjax import experiments
 
+    check_plot(args.plot)
+    check_camera_name(args)
     world = build_world(args)
     print(f"world: {world.name}")
     for name, size in world.sizes().items():
@@ -35,17 +35,30 @@ def run_world(args) -> int:
         for row in check.rows:
             print(f"    {row['light']:<18}{row['angular']:6.2f}   ({row['images']} images)")
     if args.plot:
-        experiments.plot_world(world, args.plot)
-        print(f"wrote {args.plot}", file=sys.stderr)
+        write_plot(args.plot, lambda file: experiments.plot_world(world, file))
     return 0
 
 
 def add_cameras(sub) -> None:
-    p = sub.add_parser("cameras", help="list the cameras ccjax can build")
+    p = sub.add_parser(
+        "cameras",
+        help="list the cameras ccjax can build; check ground truth against a camera's curves",
+        description="List every camera ccjax can build and where its curves come from. With --check GT.csv: "
+        "compare the ground-truth lights with the camera's whites under the default world's training lights "
+        "(median over images of the (r,g) distance to the nearest white) and say whether the images can have "
+        "been taken with that camera's curves (exit status 1 when not).",
+    )
+    world_arguments(p)
     p.add_argument(
-        "--data-dir",
+        "--check",
         default=None,
-        help="external data directory (else $CCJAX_DATA, else ../shared/data)",
+        metavar="GT.csv",
+        help="ground-truth CSV (header image,r,g,b) to check against --camera's curves",
+    )
+    p.add_argument(
+        "--plot",
+        default=None,
+        help="with --check: write a PNG of the ground truth and the camera's whites in (r,g)",
     )
     p.set_defaults(func=run_cameras)
 
@@ -53,8 +66,27 @@ def add_cameras(sub) -> None:
 def run_cameras(args) -> int:
     from ccjax import experiments
 
-    print(experiments.camera_listing(args.data_dir).text())
-    return 0
+    if args.check is None:
+        if args.plot:
+            raise ValueError("--plot: plots the camera check; give --check GT.csv too")
+        print(experiments.camera_listing(args.data_dir).text())
+        return 0
+    import numpy as np
+
+    from ccjax import io
+    from ccjax.experiments import cameras, evaluation
+
+    check_plot(args.plot)
+    if args.world == "default" and args.camera is None:
+        raise ValueError("--camera: name the camera to check the ground truth against (`ccjax cameras` lists them)")
+    check_camera_name(args)
+    truth = np.stack(list(io.read_ground_truth(args.check).values()))
+    world = evaluation.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
+    check = cameras.curve_check(truth, world)
+    print(check.message())
+    if args.plot:
+        write_plot(args.plot, lambda file: cameras.plot_curve_check(check, world, truth, file))
+    return 0 if check.passed else 1
 
 
 def registered_families() -> list:

@@ -35,6 +35,35 @@ def check_camera_option(args) -> None:
         raise SystemExit("--camera applies to --world default only (barnard1999 is the Sony DXC-930 world)")
 
 
+def check_camera_name(args) -> None:
+    """Refuse an unknown ``--camera`` before any work, pointing to ``ccjax cameras``.
+
+    Arguments:
+        args: the parsed arguments (``camera``, ``data_dir``).
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: the name is not one ccjax can build (close names suggested).
+    """
+    import difflib
+
+    from ccjax.camera import cameras
+
+    name = getattr(args, "camera", None)
+    if name is None:
+        return
+    known = cameras(getattr(args, "data_dir", None))
+    if name not in known:
+        close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
+        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+        raise ValueError(
+            f"--camera: unknown camera {name!r}{hint} `ccjax cameras` lists the {len(known)} names "
+            "('Sony DXC-930' and 'Jiang: <model>' need the external data, --data-dir)"
+        )
+
+
 def build_world(args):
     """The world of :func:`world_arguments`."""
     from ccjax.world import World
@@ -166,6 +195,51 @@ def check_distinct(inputs: Iterable[str | os.PathLike], outputs: Iterable[tuple[
             other, first = written[key]
             raise ValueError(f"{option}: {path} and {other} {first} are the same file")
         written[key] = (option, Path(path))
+
+
+PLOT_SUFFIX = ".png"
+
+
+def check_plot(path: str | os.PathLike | None, option: str = "--plot") -> None:
+    """Refuse a plot path that cannot be written, before any work (nothing for ``None``).
+
+    Arguments:
+        path: the PNG to write, or None.
+        option: the argument's name for the message.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: not a ``.png`` name, a folder, or its folder is missing or not writable.
+    """
+    if path is None:
+        return
+    check_output_file(path, option)
+    if Path(path).suffix.lower() != PLOT_SUFFIX:
+        raise ValueError(f"{option}: {path} must end in .png")
+
+
+def write_plot(path: str | os.PathLike, draw) -> None:
+    """Write a plot atomically: ``draw(buffer)`` renders the PNG into memory (matplotlib's
+    ``savefig`` takes a file object), then :func:`ccjax.io.writing.write_file` puts it in place
+    through a temporary file, so an interrupted run never leaves a partial plot.
+
+    Arguments:
+        path: the ``.png`` file (checked first with :func:`check_plot`).
+        draw: a function of one binary file object that saves the figure there as PNG.
+
+    Returns:
+        None.
+    """
+    import io
+
+    from ccjax.io.writing import write_file
+
+    buffer = io.BytesIO()
+    draw(buffer)
+    write_file(path, buffer.getvalue())
+    print(f"wrote {path}", file=sys.stderr)
 
 
 def write_outputs(args, report) -> None:

@@ -8,6 +8,7 @@ import sys
 import time
 
 from ccjax.cli.common import (
+    check_camera_name,
     check_camera_option,
     check_distinct,
     check_output_file,
@@ -22,17 +23,28 @@ OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 
 
 def image_arguments(parser: argparse.ArgumentParser) -> None:
+    """The image options of ``estimate``, ``correct`` and ``evaluate``: preparation, pixel rules,
+    masks, file levels, progress."""
     parser.add_argument(
         "--preprocessing",
-        default="ave5",
-        help="surface-list preprocessing (Table 4.6): ave<b>, ave<b>-cluster, ave<b>-hull, "
-        "seg-<min>-<rg>-<rel>[-hull], generic (default: %(default)s)",
+        default=None,
+        help="input preparation for every method: pixels (every usable pixel), ave<b>[-edges][-cluster|-hull] "
+        "(block averages, Table 4.6), seg-<min>-<rg>-<rel>[-hull], generic (default: each method's own: pixels "
+        "for grey world, shades of grey, max-RGB and grey edge, ave5 for the world-based methods)",
     )
     parser.add_argument(
         "--dark",
         type=float,
-        default=0.02,
-        help="drop pixels with R+G+B below this fraction of the brightest usable pixel's (default: %(default)s)",
+        default=None,
+        help="surface-list preprocessing: drop pixels with R+G+B below this fraction of the 99th percentile "
+        "of the usable pixels' (default: 0.02; pixels inputs have no dark rule)",
+    )
+    parser.add_argument(
+        "--mask",
+        default=None,
+        metavar="DIR",
+        help="folder of mask images, one per image named by its stem (DIR/<stem>.png, .tif or .tiff); "
+        "nonzero = usable pixel, zero = excluded (e.g. the colour checker)",
     )
     parser.add_argument(
         "--black-level",
@@ -44,7 +56,8 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
         "--saturation",
         type=float,
         default=None,
-        help="saturation level in file units (default: the format maximum, 65535 for 16-bit)",
+        help="saturation level in file units: pixels with a channel at or above it are clipped (default: 0.98 "
+        "of the format maximum, e.g. 64224 for 16-bit)",
     )
     parser.add_argument(
         "--assume-linear",
@@ -55,11 +68,19 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def read_options(args) -> dict:
+    """The keyword arguments of :func:`ccjax.io.read_image` given on the command line."""
     return {
         "black_level": args.black_level,
         "saturation": args.saturation,
         "assume_linear": args.assume_linear,
     }
+
+
+def dark_fraction(args) -> float:
+    """``--dark``, or the library default."""
+    from ccjax.preprocessing import DEFAULT_DARK
+
+    return DEFAULT_DARK if args.dark is None else args.dark
 
 
 def fit_cached(label: str, world):
@@ -70,6 +91,7 @@ def fit_cached(label: str, world):
 
 
 def image_world(args):
+    """The world of the image commands (cached on disk)."""
     from ccjax import _cache
     from ccjax.experiments import evaluation
 
@@ -78,55 +100,130 @@ def image_world(args):
     return evaluation.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
-def check_labels(labels) -> None:
-    """Refuse unknown method labels before any image is read.
+def check_labels(labels, args=None) -> None:
+    """Refuse unknown method labels, and world-based methods without a camera, before any image is read.
 
     Arguments:
         labels: estimator labels.
+        args: the parsed arguments (``--world``, ``--camera``, ``--preprocessing``, ``--dark``);
+            None checks the labels only.
 
     Returns:
         None.
 
     Raises:
-        ValueError: naming the first unknown label and the known grammars.
+        ValueError: naming the first unknown label and the known grammars; or the world-based
+            methods and ``--camera`` / ``ccjax cameras`` when the camera is not given.
     """
     from ccjax.estimators import registry
+    from ccjax.experiments.evaluation import world_based
+    from ccjax.preprocessing import as_preprocessing
 
     for label in labels:
         registry.lookup(label)
+    if args is None:
+        return
+    if args.preprocessing is not None:
+        as_preprocessing(args.preprocessing)
+    if args.dark is not None and not 0 <= args.dark < 1:
+        raise ValueError(f"--dark: expected a fraction in [0, 1), got {args.dark!r}")
+    fitted = [label for label in labels if world_based(label)]
+    if fitted and args.world == "default" and args.camera is None:
+        raise ValueError(
+            f"--camera: {', '.join(fitted)} {'is' if len(fitted) == 1 else 'are'} fitted to a world seen through "
+            "a camera's curves; give the camera that took the images with --camera NAME (`ccjax cameras` lists "
+            "the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the ground truth) or "
+            "use --world barnard1999"
+        )
+    check_camera_name(args)
 
 
-def check_images(paths, args) -> None:
-    """Read every input once before anything is computed or written (bad files -> no output).
-
-    Every file is tried, so one run reports all the bad ones.
+def check_images(paths, args) -> dict[str, str]:
+    """Check every input from its header (:func:`ccjax.io.probe_image`) before any work; decoding
+    and pixel-level problems (NaN, every pixel clipped, corrupt data) surface in the work pass.
 
     Arguments:
         paths: the image files.
-        args: the parsed arguments (preprocessing and read options).
+        args: the parsed arguments (read options).
+
+    Returns:
+        ``{path: line}`` for each file that cannot be used (empty when all can).
+
+    Raises:
+        ValueError: no files, or not one of them can be used (one line per file).
+    """
+    from ccjax import io
+
+    if not paths:
+        raise ValueError("images: no image files given (folders are searched for .png, .tif, .tiff and raw files)")
+    problems = {}
+    for path in paths:
+        try:
+            io.probe_image(path, **read_options(args))
+        except (ValueError, OSError) as error:
+            problems[str(path)] = f"{error}" if str(path) in str(error) else f"{path}: {error}"
+    if len(problems) == len(paths):
+        raise_problems(list(problems.values()), len(paths))
+    return problems
+
+
+def raise_problems(problems, total: int) -> None:
+    """Raise one ``ValueError`` naming every image that could not be used (nothing if none).
+
+    Arguments:
+        problems: one line per bad image.
+        total: how many images the command was given.
 
     Returns:
         None.
 
     Raises:
-        ValueError: no files, or one line per unreadable file.
+        ValueError: when ``problems`` is not empty (``main`` prints it and exits 2).
     """
-    from ccjax import io
-    from ccjax.preprocessing import Preprocessing
-
-    Preprocessing.parse(args.preprocessing)
-    if not paths:
-        raise ValueError("images: no image files given (folders are searched for .png, .tif, .tiff and raw files)")
-    problems = []
-    for path in paths:
-        try:
-            io.read_image(path, **read_options(args))
-        except (ValueError, OSError) as error:
-            problems.append(f"{error}" if str(path) in str(error) else f"{path}: {error}")
-    if len(problems) == 1:
+    if len(problems) == 1 and total == 1:
         raise ValueError(problems[0])
     if problems:
-        raise ValueError(f"{len(problems)} of {len(paths)} images cannot be used:\n  " + "\n  ".join(problems))
+        raise ValueError(f"{len(problems)} of {total} images cannot be used:\n  " + "\n  ".join(problems))
+
+
+MASK_SUFFIXES = (".png", ".tif", ".tiff")
+
+
+def mask_files(paths, folder) -> list | None:
+    """The mask file of each image: ``folder/<stem>.png`` (or ``.tif``, ``.tiff``).
+
+    Arguments:
+        paths: the image files.
+        folder: ``--mask`` (None: no masks).
+
+    Returns:
+        One path per image, or None without ``folder``.
+
+    Raises:
+        ValueError: ``folder`` is not a folder, or an image has no mask (every such image named),
+            or two mask files fit one image.
+    """
+    from pathlib import Path
+
+    if folder is None:
+        return None
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ValueError(f"--mask: {folder} is not a folder")
+    found, missing = [], []
+    for path in paths:
+        candidates = [folder / f"{Path(path).stem}{suffix}" for suffix in MASK_SUFFIXES]
+        present = [candidate for candidate in candidates if candidate.is_file()]
+        if len(present) > 1:
+            raise ValueError(f"--mask: {' and '.join(map(str, present))} both fit image {path}; keep one")
+        if not present:
+            missing.append(str(path))
+        else:
+            found.append(present[0])
+    if missing:
+        names = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5 else "")
+        raise ValueError(f"--mask: no mask in {folder} for {names} (looked for <stem>.png, <stem>.tif, <stem>.tiff)")
+    return found
 
 
 def add_estimate(sub) -> None:
@@ -156,32 +253,53 @@ def run_estimate(args) -> int:
     from ccjax import io
     from ccjax.experiments import evaluation
 
-    check_labels([args.method])
+    check_labels([args.method], args)
     paths = io.list_images(args.images)
-    check_images(paths, args)
+    masks = mask_files(paths, args.mask)
+    problems = check_images(paths, args)
+    good, good_masks = usable(paths, masks, problems)
     world = image_world(args)
     model = fit_cached(args.method, world)
     results = evaluation.run_images(
-        paths,
+        good,
         {args.method: [model]},
         preprocessing=args.preprocessing,
-        dark=args.dark,
+        dark=dark_fraction(args),
         read_options=read_options(args),
+        masks=good_masks,
         progress=not args.no_progress,
+        keep_going=True,
     )
     records = [{k: r[k] for k in ("path", "illuminant", "rg", "ok")} for r in results.records()]
     if args.json:
         print(json.dumps(records, indent=1))
     else:
-        print(f"{'image':<40}{'R':>9}{'G':>9}{'B':>9}{'r':>8}{'g':>8}  ok")
+        width = max([40, *(len(r["path"]) + 2 for r in records)])
+        print(f"{'image':<{width}}{'R':>9}{'G':>9}{'B':>9}{'r':>8}{'g':>8}  ok")
         for r in records:
             print(
-                f"{r['path']:<40}"
+                f"{r['path']:<{width}}"
                 + "".join(f"{v:9.5f}" for v in r["illuminant"])
                 + "".join(f"{v:8.4f}" for v in r["rg"])
                 + f"  {'yes' if r['ok'] else 'no'}"
             )
+    raise_problems(bad_images(paths, problems, results.failures), len(paths))
     return 0
+
+
+def usable(paths, masks, problems):
+    """The paths (and their masks) that passed :func:`check_images`."""
+    keep = [index for index, path in enumerate(paths) if str(path) not in problems]
+    return [paths[i] for i in keep], None if masks is None else [masks[i] for i in keep]
+
+
+def bad_images(paths, *found) -> list[str]:
+    """Every problem of ``found`` (``{path: line}`` dicts: header checks, then the work pass), in
+    the order of ``paths``."""
+    merged = {}
+    for problems in found:
+        merged.update({path: line for path, line in problems.items() if path not in merged})
+    return [merged[str(path)] for path in paths if str(path) in merged]
 
 
 def add_correct(sub) -> None:
@@ -301,44 +419,48 @@ def correct_outputs(args):
 def run_correct(args) -> int:
     from pathlib import Path
 
+    import jax.numpy as jnp
     import numpy as np
     from tqdm.auto import tqdm
 
     from ccjax import correction, io, preprocessing
 
-    check_labels([args.method])
+    check_labels([args.method], args)
     paths, outputs, previews = correct_outputs(args)
+    masks = mask_files(paths, args.mask)
     target = Path(args.output)
     sharpening = None
     if args.sharpening:
         sharpening = np.load(args.sharpening) if args.sharpening.endswith(".npy") else np.loadtxt(args.sharpening)
         if sharpening.shape != (3, 3) or not np.all(np.isfinite(sharpening)) or abs(np.linalg.det(sharpening)) < 1e-9:
             raise ValueError(f"sharpening: {args.sharpening} must hold an invertible 3x3 matrix")
-    check_images(paths, args)
+    problems = check_images(paths, args)
     world = image_world(args)
     model = fit_cached(args.method, world)
     canonical = world.canonical_white
     matrix = io.preview_matrix_cached(world)
-    if Path(args.input).is_dir():
-        target.mkdir(parents=True, exist_ok=True)
-    for path, output, preview in zip(
-        tqdm(
-            paths,
-            desc="images",
-            unit="image",
-            disable=args.no_progress,
-            file=sys.stderr,
-        ),
-        outputs,
-        previews,
-    ):
-        image = io.read_image(path, **read_options(args))
-        estimate = preprocessing.estimate_image(model, image, args.preprocessing, dark=args.dark)
+    failures = {}
+    bar = tqdm(range(len(paths)), desc="images", unit="image", disable=args.no_progress, file=sys.stderr)
+    for index in bar:
+        path, output, preview = paths[index], outputs[index], previews[index]
+        if str(path) in problems:
+            continue
+        try:
+            image = io.read_image(path, **read_options(args))
+            mask = None if masks is None else io.read_mask(masks[index], image.shape)
+            rgb, valid = preprocessing.prepare(model, image, args.preprocessing, dark=dark_fraction(args), mask=mask)
+        except ValueError as error:  # pixel-level problems (decoding, NaN, every pixel clipped)
+            failures[str(path)] = f"{error}" if str(path) in str(error) else f"{path}: {error}"
+            continue
+        estimate = preprocessing.run_model(model, jnp.asarray(rgb), jnp.asarray(valid))
         corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening))
+        if Path(args.input).is_dir():
+            target.mkdir(parents=True, exist_ok=True)
         io.write_linear(output, corrected)
         io.write_preview(preview, corrected, matrix)
-        rgb = np.asarray(estimate.illuminant)
-        print(f"{path}: illuminant {np.round(rgb, 5).tolist()} (ok: {bool(estimate.ok)}) -> {output}, {preview}")
+        illuminant = np.asarray(estimate.illuminant)
+        print(f"{path}: illuminant {np.round(illuminant, 5).tolist()} (ok: {bool(estimate.ok)}) -> {output}, {preview}")
+    raise_problems(bad_images(paths, problems, failures), len(paths))
     return 0
 
 
@@ -346,10 +468,13 @@ def add_evaluate(sub) -> None:
     p = sub.add_parser(
         "evaluate",
         help="evaluate methods on a folder of images with ground truth",
-        description="Run each method on every image listed in the ground truth and print angular error statistics "
-        "(mean, median, trimean, best 25%%, worst 25%%, max) and the share of images where a method fell "
-        "back or relaxed (not ok). Ground truth: CSV with header image,r,g,b (file name in DIR; r,g,b = "
-        "camera RGB of the light, any scale).",
+        description="Run each method on every image listed in the ground truth and print the angular error "
+        "statistics (mean, median, trimean, best 25%%, worst 25%%, 95th percentile, max, bootstrap 95%% "
+        "confidence intervals of mean and median), each method's input, seconds (compilation apart) and the "
+        "images where it fell back or relaxed, with the reasons. Ground truth: CSV with header image,r,g,b (file "
+        "name in DIR; r,g,b = camera RGB of the light, any scale). World-based methods need --camera; the ground "
+        "truth is checked against that camera's whites (see `ccjax cameras --check`). Unreadable images are "
+        "reported and skipped (exit status 2).",
     )
     p.add_argument("directory", help="folder of linear images")
     p.add_argument("--ground-truth", required=True, help="CSV with header image,r,g,b")
@@ -365,68 +490,103 @@ def add_evaluate(sub) -> None:
         default=None,
         help="write summaries and per-image results as JSON ('-' for stdout)",
     )
-    p.add_argument("--csv", default=None, help="write per-image results as CSV ('-' for stdout)")
+    p.add_argument(
+        "--csv",
+        default=None,
+        help="write one row per image and method (estimate, ok, status, angular error) as CSV ('-' for stdout)",
+    )
     world_arguments(p)
     image_arguments(p)
     p.set_defaults(func=run_evaluate)
+
+
+CSV_FIELDS = ("path", "method", "preprocessing", "R", "G", "B", "r", "g", "ok", "status", "angular")
+
+
+def results_csv(results) -> str:
+    """One CSV row per image and method (:data:`CSV_FIELDS`)."""
+    import csv
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_FIELDS)
+    for r in results.records():
+        writer.writerow(
+            [
+                r["path"],
+                r["method"],
+                results.preprocessing.get(r["method"], ""),
+                *(f"{v:.9g}" for v in r["illuminant"] + r["rg"]),
+                str(r["ok"]),
+                r.get("status", ""),
+                f"{r['angular']:.9g}",
+            ]
+        )
+    return buffer.getvalue()
 
 
 def run_evaluate(args) -> int:
     import numpy as np
 
     from ccjax import io
-    from ccjax.experiments import evaluation
+    from ccjax.experiments import cameras, evaluation
 
     start = time.perf_counter()
-    check_labels(args.methods)
+    check_labels(args.methods, args)
     for option, path in (("--json", args.json), ("--csv", args.csv)):
         if path:
             check_output_file(path, option)
     pairs = io.match_ground_truth(io.read_ground_truth(args.ground_truth), args.directory)
     pairs.sort(key=lambda pair: str(pair[0]))
     paths, truth = [p for p, _ in pairs], np.stack([t for _, t in pairs])
-    check_images(paths, args)
+    masks = mask_files(paths, args.mask)
+    problems = check_images(paths, args)
     world = image_world(args)
+    check = None
+    if args.camera or args.world != "default" or any(evaluation.world_based(label) for label in args.methods):
+        check = cameras.curve_check(truth, world)
+        if not check.passed:
+            print(
+                f"warning: {check.message()}; try `ccjax cameras --check {args.ground_truth} --camera NAME`",
+                file=sys.stderr,
+            )
     fold_of = None
     if args.folds:
         fold_of, worlds = evaluation.fold_worlds(world, truth, args.folds)
         models = {label: [fit_cached(label, w) for w in worlds] for label in args.methods}
     else:
         models = {label: [fit_cached(label, world)] for label in args.methods}
+    keep = [index for index, path in enumerate(paths) if str(path) not in problems]
     results = evaluation.run_images(
-        paths,
+        [paths[i] for i in keep],
         models,
-        fold_of=fold_of,
+        fold_of=None if fold_of is None else fold_of[keep],
         preprocessing=args.preprocessing,
-        dark=args.dark,
+        dark=dark_fraction(args),
         read_options=read_options(args),
+        masks=None if masks is None else [masks[i] for i in keep],
         progress=not args.no_progress,
-        truth=truth,
+        truth=truth[keep],
+        keep_going=True,
     )
     folds = f"; {args.folds}-fold cross-validation" if args.folds else ""
-    print(f"world: {world.name}; preprocessing: {args.preprocessing}{folds}")
+    preparation = args.preprocessing or "each method's default"
+    print(f"world: {world.name}; preprocessing: {preparation}{folds}")
+    if check is not None:
+        print(check.message())
     print(results.table(), flush=True)
+    bad = bad_images(paths, problems, results.failures)
     if args.json:
         summary = {label: results.summary(label) for label in args.methods}
-        write(
-            args.json,
-            json.dumps({"summary": summary, "images": results.records()}, indent=1),
-        )
+        report = {"summary": summary, "images": results.records(), "failures": bad}
+        if check is not None:
+            report["camera_check"] = {"camera": check.camera, "distance": check.distance, "threshold": check.threshold}
+        write(args.json, json.dumps(report, indent=1))
     if args.csv:
-        lines = ["path,method,R,G,B,r,g,ok,angular"] + [
-            ",".join(
-                [
-                    r["path"],
-                    r["method"],
-                    *(f"{v:.9g}" for v in r["illuminant"] + r["rg"]),
-                    str(r["ok"]),
-                    f"{r['angular']:.9g}",
-                ]
-            )
-            for r in results.records()
-        ]
-        write(args.csv, "\n".join(lines) + "\n")
+        write(args.csv, results_csv(results))
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    raise_problems(bad, len(paths))
     return 0
 
 

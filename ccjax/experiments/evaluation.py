@@ -1,7 +1,10 @@
 """Evaluating estimators on a folder of images with ground truth (Barnard 1999 §4.6, ch. 5).
 
-:func:`run_images` reads each image once and runs every method on it (the preprocessing is shared
-between the surface-list methods); :func:`fold_worlds` builds the worlds of a K-fold
+:func:`run_images` reads each image once and runs every method on it, each on its own input
+(:func:`ccjax.preprocessing.prepare`: every usable pixel for the statistics methods, the thesis'
+5x5 block averages for the world-based ones), shared between the methods that get the same
+input, with compilation timed apart; :func:`world_based` says which methods depend on the
+world's camera (the command line then requires ``--camera``); :func:`fold_worlds` builds the worlds of a K-fold
 cross-validation whose trained methods learn the lights of the other folds' ground truth.
 :func:`cached_world` gives the worlds the command line uses, stored on disk as arrays (no pickle);
 fitted models come from :func:`ccjax.estimators.registry.fit_cached` (once per process; the
@@ -13,19 +16,30 @@ from __future__ import annotations
 import hashlib
 import os
 import sys
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ccjax._cache import cached_arrays, content_key
 from ccjax.camera import Camera
-from ccjax.estimators.base import AbstractEstimator
+from ccjax.estimators.base import AbstractEstimator, Estimate, Status
 from ccjax.io.reading import read_image
-from ccjax.preprocessing import DEFAULT_DARK, DEFAULT_PREPROCESSING, Preprocessing, run_model, surfaces
+from ccjax.preprocessing import (
+    DEFAULT_DARK,
+    Preprocessing,
+    as_preprocessing,
+    input_key,
+    input_shapes,
+    prepare,
+    resolve,
+    run_model,
+)
 from ccjax.world import World
 
 _WORLD_ARRAYS = ("reflectances", "train_illuminants", "test_illuminants", "canonical")
@@ -87,19 +101,32 @@ def cached_world(
 
 @dataclass
 class ImageResults:
-    """Estimates of several methods over a list of images.
+    """Estimates of several methods over a list of images, with timings and failures.
 
     Attributes:
-        paths: the image files, in order.
+        paths: the images that were estimated, in order (unreadable ones are in ``failures``).
         estimates: ``{method: (N, 3)}`` illuminant RGB (unit scale of each image).
         ok: ``{method: (N,)}`` False where the method fell back or relaxed its constraints.
-        truth: ``(N, 3)`` ground truth when known.
+        truth: ``(N, 3)`` ground truth of ``paths`` when known.
+        status: ``{method: (N,)}`` :class:`ccjax.estimators.base.Status` codes (why not ok).
+        seconds: ``{method: s}`` time spent estimating, warm-up compilation excluded.
+        warmup: ``{method: s}`` compilation (the first call per input shape, timed apart).
+        preprocessing: ``{method: name}`` the input each method got (:func:`ccjax.preprocessing.resolve`).
+        preparation: ``{preprocessing name: s}`` time spent preparing inputs (shared by the
+            methods that get the same input), and ``"read"``: decoding the files.
+        failures: ``{path: reason}`` images that could not be used (``keep_going``).
     """
 
     paths: list[str]
     estimates: dict[str, np.ndarray]
     ok: dict[str, np.ndarray]
     truth: np.ndarray | None = None
+    status: dict[str, np.ndarray] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+    warmup: dict[str, float] = field(default_factory=dict)
+    preprocessing: dict[str, str] = field(default_factory=dict)
+    preparation: dict[str, float] = field(default_factory=dict)
+    failures: dict[str, str] = field(default_factory=dict)
 
     def angular(self, method: str) -> np.ndarray:
         """``(N,)`` angular errors (degrees) of ``method`` against the ground truth."""
@@ -109,37 +136,78 @@ class ImageResults:
             angular_error(jnp.asarray(self.estimates[method]), jnp.asarray(self.truth, jnp.float32)), np.float64
         )
 
-    def summary(self, method: str) -> dict[str, float]:
-        """Mean, median, trimean, best/worst 25 %, max of the angular error, and the not-ok share."""
-        from ccjax.metrics import summarise
+    def status_counts(self, method: str) -> dict[str, int]:
+        """How many images got each :class:`~ccjax.estimators.base.Status` other than ``ESTIMATED``
+        (``{"relaxed": n, "no_data": n, "empty_set": n}``, zero counts left out)."""
+        codes = self.status.get(method)
+        if codes is None:  # results built without status codes: only ok is known
+            return {"not_ok": int(np.sum(~self.ok[method]))} if not np.all(self.ok[method]) else {}
+        counts = {}
+        for status in Status:
+            number = int(np.sum(codes == status.value))
+            if status is not Status.ESTIMATED and number:
+                counts[status.name.lower()] = number
+        return counts
 
-        errors = self.angular(method)
-        row = {name: summarise(errors, name) for name in ("mean", "median", "trimean", "best25", "worst25", "max")}
-        row["not_ok"] = float(1.0 - np.mean(self.ok[method]))
+    def summary(self, method: str, *, seed: int = 0) -> dict:
+        """The field's statistics of the angular error (:func:`ccjax.metrics.error_statistics`:
+        mean, median, trimean, best/worst 25 %, 95th percentile, max, bootstrap 95 % intervals
+        of mean and median), the not-ok share, the status counts, seconds and warm-up seconds."""
+        from ccjax.metrics import error_statistics
+
+        row: dict = error_statistics(self.angular(method), seed=seed) if len(self.paths) else {}
+        row["not_ok"] = float(1.0 - np.mean(self.ok[method])) if len(self.paths) else 0.0
+        row["status"] = self.status_counts(method)
+        row["preprocessing"] = self.preprocessing.get(method)
+        row["seconds"] = self.seconds.get(method)
+        row["warmup_seconds"] = self.warmup.get(method)
         return row
 
     def table(self) -> str:
-        """Angular error (degrees) per method, one line each."""
+        """Angular error statistics (degrees) per method, then each method's input, time and
+        fallbacks, for pasting into a report."""
+        width = max([24, *(len(method) + 2 for method in self.estimates)])
         header = (
-            f"{'method':<24}{'mean':>8}{'median':>8}{'trimean':>9}{'best25':>8}{'worst25':>9}{'max':>8}{'not ok':>9}"
+            f"{'method':<{width}}{'mean':>8}{'median':>8}{'trimean':>9}{'best25':>8}{'worst25':>9}{'p95':>8}"
+            f"{'max':>8}{'mean 95% CI':>18}{'median 95% CI':>18}"
         )
         lines = [f"angular error (degrees) over {len(self.paths)} images", header]
-        for method in self.estimates:
-            row = self.summary(method)
+        summaries = {method: self.summary(method) for method in self.estimates}
+        for method, row in summaries.items():
+            if not len(self.paths):
+                continue
             lines.append(
-                f"{method:<24}{row['mean']:8.3f}{row['median']:8.3f}{row['trimean']:9.3f}{row['best25']:8.3f}"
-                f"{row['worst25']:9.3f}{row['max']:8.3f}{100 * row['not_ok']:8.1f}%"
+                f"{method:<{width}}{row['mean']:8.3f}{row['median']:8.3f}{row['trimean']:9.3f}{row['best25']:8.3f}"
+                f"{row['worst25']:9.3f}{row['p95']:8.3f}{row['max']:8.3f}"
+                + "".join(
+                    f"{row[f'{name}_low']:.3f}-{row[f'{name}_high']:.3f}".rjust(18) for name in ("mean", "median")
+                )
             )
+        lines += ["", f"{'method':<{width}}{'input':<14}{'seconds':>9}{'ms/image':>10}{'warm-up s':>11}  not ok (why)"]
+        for method, row in summaries.items():
+            seconds, warm = row["seconds"] or 0.0, row["warmup_seconds"] or 0.0
+            per_image = 1000 * seconds / max(len(self.paths), 1)
+            reasons = ", ".join(f"{name.replace('_', ' ')} {count}" for name, count in row["status"].items())
+            count = int(np.sum(~self.ok[method]))
+            lines.append(
+                f"{method:<{width}}{row['preprocessing'] or '-':<14}{seconds:9.2f}{per_image:10.2f}{warm:11.2f}  "
+                f"{count} ({100 * row['not_ok']:.1f}%)" + (f": {reasons}" if reasons else "")
+            )
+        if self.preparation:
+            parts = ", ".join(f"{name} {seconds:.2f} s" for name, seconds in self.preparation.items())
+            lines.append(f"input preparation (shared between methods): {parts}")
         return "\n".join(lines)
 
     def records(self) -> list[dict]:
-        """One record per image and method (path, method, illuminant, rg, ok, angular error)."""
+        """One record per image and method (path, method, illuminant, rg, ok, status, angular error)."""
         from ccjax.spectra import chromaticity
 
         rows = []
         for method, estimates in self.estimates.items():
             errors = self.angular(method) if self.truth is not None else [None] * len(self.paths)
-            for path, rgb, ok, error in zip(self.paths, estimates, self.ok[method], errors):
+            codes = self.status.get(method)
+            for index, (path, rgb, ok, error) in enumerate(zip(self.paths, estimates, self.ok[method], errors)):
+                status = Status(int(codes[index])).name.lower() if codes is not None else None
                 rows.append(
                     {
                         "path": path,
@@ -147,10 +215,60 @@ class ImageResults:
                         "illuminant": [float(v) for v in rgb],
                         "rg": [float(v) for v in chromaticity(np.asarray(rgb, np.float64))],
                         "ok": bool(ok),
+                        **({} if status is None else {"status": status}),
                         **({} if error is None else {"angular": float(error)}),
                     }
                 )
         return rows
+
+
+_WORLD_FREE_EXAMPLES = ("GW", "RETINEX", "soft-RETINEX-t0.01", "shades-of-grey-p6", "grey-edge-1-6-2")
+"""One label of each family whose estimate uses only the image (the world gives a fallback light
+at most): grey world, max-RGB, soft max-RGB, shades of grey, grey edge."""
+
+
+def world_based(label: str) -> bool:
+    """Whether the method named ``label`` is fitted to a world: its answers come from the world's
+    lights, reflectances or canonical light as its camera sees them (gamut mapping, Colour by
+    Correlation, the nets, DB-GW, AVE-ILLUM, NOTHING, ...), so on photographs it needs the
+    camera's own curves. The statistics methods (grey world, max-RGB, shades of grey, grey edge)
+    use the world only for their fallback light.
+
+    A registry entry that states ``world_based`` is believed; otherwise a family is world-free
+    when it is one of the statistics families (new families count as world-based: asking for a
+    camera is the safe default).
+
+    Arguments:
+        label: a registry label.
+
+    Returns:
+        True when the method needs the camera's curves.
+
+    Raises:
+        ValueError: unknown label.
+    """
+    from ccjax.estimators import registry
+
+    entry, _ = registry.lookup(label)
+    stated = getattr(entry, "world_based", None)
+    if stated is not None:
+        return bool(stated)
+    return all(registry.lookup(example)[0] is not entry for example in _WORLD_FREE_EXAMPLES)
+
+
+def _leave_out(bar, seconds: float) -> None:
+    """Leave ``seconds`` (warm-up compilation) out of a tqdm bar's rate and ETA: the clock that
+    the bar's rate is measured from moves forward by that much (what ``tqdm.unpause`` does)."""
+    if not bar.disable:
+        bar.start_t += seconds
+        bar.last_print_t += seconds
+
+
+def _timed(model, rgb, mask) -> tuple[Estimate, float]:
+    start = time.perf_counter()
+    result = run_model(model, rgb, mask)
+    jax.block_until_ready(result)
+    return result, time.perf_counter() - start
 
 
 def run_images(
@@ -158,47 +276,136 @@ def run_images(
     models: Mapping[str, list[AbstractEstimator]],
     *,
     fold_of: np.ndarray | None = None,
-    preprocessing: str | Preprocessing = DEFAULT_PREPROCESSING,
+    preprocessing: str | Preprocessing | None = None,
     dark: float = DEFAULT_DARK,
     read_options: dict | None = None,
+    masks: Sequence[str | os.PathLike | None] | None = None,
     progress: bool = False,
     truth: np.ndarray | None = None,
+    keep_going: bool = False,
 ) -> ImageResults:
-    """Read each image once and run every method on it (preprocessing shared between methods).
+    """Read each image once and run every method on it, each on its own kind of input.
+
+    Each method gets the input :func:`ccjax.preprocessing.prepare` gives it: its own default
+    (``pixels`` for the statistics methods, ``ave5`` for the world-based ones) or ``preprocessing``
+    for all. Methods that get the same input share it (prepared once per image).
+
+    Compilation is kept out of the timings and of the progress bar's rate: before the bar starts,
+    every method is compiled for every image size the files' headers announce (the methods that
+    get the image); surface lists, whose padded length depends on the content, are compiled when a
+    size class first appears, and that call is timed as warm-up, apart from the run.
 
     Arguments:
         paths: image files.
         models: ``{label: [model]}``, or one model per fold (``[model_fold0, model_fold1, ...]``).
         fold_of: ``(N,)`` fold of each image (selects its model); ``None``: fold 0.
-        preprocessing, dark: see :func:`ccjax.preprocessing.surfaces`.
+        preprocessing: a preprocessing name for every method; None: each method's default.
+        dark: the dark rule of the surface-list preprocessing (:func:`ccjax.preprocessing.usable_pixels`).
         read_options: keyword arguments of :func:`ccjax.io.read_image`.
+        masks: optional mask file per image (``None`` entries: no mask; :func:`ccjax.io.read_mask`).
         progress: show a progress bar on stderr.
-        truth: optional ``(N, 3)`` ground truth, stored in the result.
+        truth: optional ``(N, 3)`` ground truth, stored in the result (rows of the images used).
+        keep_going: record an image that cannot be read or prepared in ``failures`` (with the
+            reason) and go on; otherwise the error is raised.
 
     Returns:
         :class:`ImageResults`.
     """
     from tqdm.auto import tqdm
 
+    from ccjax.io.reading import probe_image, read_mask
+
     paths = [Path(p) for p in paths]
-    method = Preprocessing.parse(preprocessing) if isinstance(preprocessing, str) else preprocessing
+    options = read_options or {}
+    if masks is not None and len(masks) != len(paths):
+        raise ValueError(f"masks: expected one entry per image ({len(paths)}), got {len(masks)}")
+    if preprocessing is not None:
+        as_preprocessing(preprocessing)  # unknown names fail before any work
+    first = {label: fold_models[0] for label, fold_models in models.items()}
+    keys = {label: input_key(model, preprocessing) for label, model in first.items()}
+    failures: dict[str, str] = {}
+
+    def fail(path: Path, error: Exception) -> None:
+        if not keep_going:
+            raise error
+        message = str(error)
+        failures[str(path)] = message if str(path) in message else f"{path}: {message}"
+
+    # Warm-up for image inputs: their shapes are in the headers.
+    warmup = dict.fromkeys(models, 0.0)
+    compiled: set[tuple] = set()
+    sizes: set[tuple[int, int]] = set()
+    for path in paths:
+        try:
+            info = probe_image(path, **options)
+        except (ValueError, OSError) as error:
+            fail(path, error)
+            continue
+        sizes.add((info.height, info.width))
+    for label, fold_models in models.items():
+        for fold, model in enumerate(fold_models):
+            for size in sorted(sizes):
+                for rgb_shape, mask_shape in input_shapes(model, size, preprocessing):
+                    if len(rgb_shape) == 3:
+                        rgb, mask = jnp.zeros(rgb_shape, jnp.float32), jnp.zeros(mask_shape, bool)
+                        warmup[label] += _timed(model, rgb, mask)[1]
+                        compiled.add((label, fold, rgb_shape))
+
+    good: list[int] = []
     estimates = {label: np.zeros((len(paths), 3), np.float32) for label in models}
     ok = {label: np.zeros(len(paths), bool) for label in models}
-    for index, path in enumerate(tqdm(paths, desc="images", unit="image", disable=not progress, file=sys.stderr)):
-        image = read_image(path, **(read_options or {}))
-        surface_input = None
+    status = {label: np.zeros(len(paths), np.int32) for label in models}
+    seconds = dict.fromkeys(models, 0.0)
+    preparation = {"read": 0.0} | dict.fromkeys(keys.values(), 0.0)
+    bar = tqdm(paths, desc="images", unit="image", disable=not progress, file=sys.stderr)
+    for index, path in enumerate(bar):
+        if str(path) in failures:
+            continue
+        try:
+            start = time.perf_counter()
+            image = read_image(path, **options)
+            mask_file = None if masks is None else masks[index]
+            mask = None if mask_file is None else read_mask(mask_file, image.shape)
+            preparation["read"] += time.perf_counter() - start
+            inputs = {}
+            for label, key in keys.items():
+                if key not in inputs:
+                    start = time.perf_counter()
+                    rgb, valid = prepare(first[label], image, preprocessing, dark=dark, mask=mask)
+                    inputs[key] = (jnp.asarray(rgb), jnp.asarray(valid))
+                    preparation[key] += time.perf_counter() - start
+        except (ValueError, OSError) as error:
+            fail(path, error)
+            continue
+        del image
         for label, fold_models in models.items():
-            model = fold_models[0 if fold_of is None else int(fold_of[index])]
-            if model.input_kind == "image":
-                rgb, mask = image.rgb, ~image.clipped
-            else:
-                if surface_input is None:
-                    surface_input = surfaces(image, method, dark=dark)
-                rgb, mask = surface_input
-            result = run_model(model, jnp.asarray(rgb), jnp.asarray(mask))
+            fold = 0 if fold_of is None else int(fold_of[index])
+            rgb, valid = inputs[keys[label]]
+            if (label, fold, rgb.shape) not in compiled:
+                # First call at this shape: compilation, timed apart and left out of the bar.
+                compile_seconds = _timed(fold_models[fold], rgb, valid)[1]
+                warmup[label] += compile_seconds
+                _leave_out(bar, compile_seconds)
+                compiled.add((label, fold, rgb.shape))
+            result, spent = _timed(fold_models[fold], rgb, valid)
+            seconds[label] += spent
             estimates[label][index] = np.asarray(result.illuminant)
             ok[label][index] = bool(result.ok)
-    return ImageResults(paths=[str(p) for p in paths], estimates=estimates, ok=ok, truth=truth)
+            status[label][index] = int(result.status)
+        good.append(index)
+    bar.close()
+    return ImageResults(
+        paths=[str(paths[i]) for i in good],
+        estimates={label: values[good] for label, values in estimates.items()},
+        ok={label: values[good] for label, values in ok.items()},
+        truth=None if truth is None else np.asarray(truth)[good],
+        status={label: values[good] for label, values in status.items()},
+        seconds=seconds,
+        warmup=warmup,
+        preprocessing={label: resolve(model, preprocessing).name for label, model in first.items()},
+        preparation=preparation,
+        failures=failures,
+    )
 
 
 def fold_worlds(world: World, truth: np.ndarray, folds: int) -> tuple[np.ndarray, list[World]]:
