@@ -3,80 +3,75 @@
 Faithful implementations of the methods of K. Barnard, *Practical Colour Constancy* (1999), plus
 modern estimators, as pure ``jit``/``vmap`` kernels. Start with :class:`World`,
 :func:`ccjax.scenes.sample`, :func:`estimate` and :func:`ccjax.experiments.sweep`.
+
+The names below are imported on first use (PEP 562 module ``__getattr__``), so ``import ccjax``
+itself loads no JAX: the ``ccjax`` command starts its Ctrl-C handling before the slow import of
+JAX, and ``ccjax --help`` answers at once. ``import ccjax; ccjax.estimate(...)``, ``from ccjax
+import World`` and ``ccjax.<subpackage>`` work as with eager imports.
 """
 
 from __future__ import annotations
 
-import functools
+import importlib
+import importlib.util
+from typing import TYPE_CHECKING
 
-from ccjax import metrics
-from ccjax.camera import Camera, cameras
-from ccjax.estimators import (
-    AbstractEstimator,
-    AbstractImageEstimator,
-    AbstractSurfaceEstimator,
-    Estimate,
-    Estimator,
-    Status,
-    estimate_batch,
-    fit,
-)
-from ccjax.scenes import Scenes, ShotNoise, Specular, sample
-from ccjax.spectra import WAVELENGTHS
-from ccjax.world import World
+if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
+    from ccjax import metrics
+    from ccjax._estimate import estimate
+    from ccjax.camera import Camera, cameras
+    from ccjax.estimators import (
+        AbstractEstimator,
+        AbstractImageEstimator,
+        AbstractSurfaceEstimator,
+        Estimate,
+        Estimator,
+        Status,
+        estimate_batch,
+        fit,
+    )
+    from ccjax.scenes import Scenes, ShotNoise, Specular, sample
+    from ccjax.spectra import WAVELENGTHS
+    from ccjax.world import World
 
 __version__ = "0.1.0"
 
+_SOURCES = {
+    "WAVELENGTHS": "ccjax.spectra",
+    "AbstractEstimator": "ccjax.estimators",
+    "AbstractImageEstimator": "ccjax.estimators",
+    "AbstractSurfaceEstimator": "ccjax.estimators",
+    "Camera": "ccjax.camera",
+    "Estimate": "ccjax.estimators",
+    "Estimator": "ccjax.estimators",
+    "Scenes": "ccjax.scenes",
+    "ShotNoise": "ccjax.scenes",
+    "Specular": "ccjax.scenes",
+    "Status": "ccjax.estimators",
+    "World": "ccjax.world",
+    "cameras": "ccjax.camera",
+    "estimate": "ccjax._estimate",
+    "estimate_batch": "ccjax.estimators",
+    "fit": "ccjax.estimators",
+    "sample": "ccjax.scenes",
+}
+"""The module each top-level name comes from."""
 
-@functools.cache
-def _default_world() -> World:
-    return World.default()
 
-
-def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
-    """Estimate the illuminant of one scene or a batch, with a label or a fitted model.
-
-    The model's input kind decides what ``x`` is: surface estimators take a surface list ``(P, 3)``
-    or a batch ``(B, P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch
-    ``(B, H, W, 3)``. Anything else raises a ``ValueError`` saying what to pass (images reach
-    surface estimators through the image pipeline, :mod:`ccjax.preprocessing`).
-
-    Arguments:
-        method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ``"grey-edge-1-6-2"``, ...) or a
-            fitted estimator.
-        x: linear camera RGB, non-negative and finite.
-        mask: optional booleans ``x.shape[:-1]``, True where a surface or pixel is valid.
-        world: the world a label is fitted to (default :meth:`World.default`).
-
-    Returns:
-        An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like ``x``.
-    """
-    from ccjax.estimators.base import validate_input
-
-    if isinstance(method, str):
-        model = fit(method, world if world is not None else _default_world())
-    elif isinstance(method, AbstractEstimator):
-        model = method
+def __getattr__(name: str) -> object:
+    """A top-level name or a subpackage, imported on first use and then kept in the module."""
+    if name in _SOURCES:
+        value = getattr(importlib.import_module(_SOURCES[name]), name)
+    elif not name.startswith("__") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        value = importlib.import_module(f"{__name__}.{name}")  # ``import ccjax; ccjax.experiments``
     else:
-        raise ValueError(f"method: expected a label or a fitted estimator, got {type(method).__name__}")
-    x, mask = validate_input(model, x, mask)
-    return _run(model, x, mask)
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
 
 
-@functools.cache
-def _compiled_runner():
-    import equinox as eqx
-
-    @eqx.filter_jit
-    def run(model, x, mask):
-        one_scene_ndim = 2 if model.input_kind == "surfaces" else 3
-        return model(x, mask) if x.ndim == one_scene_ndim else estimate_batch(model, x, mask)
-
-    return run
-
-
-def _run(model, x, mask):
-    return _compiled_runner()(model, x, mask)
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
 
 
 __all__ = [

@@ -7,47 +7,152 @@ One module per command group; each declares ``add_<command>(subparsers)`` (its a
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
+from typing import TYPE_CHECKING
 
-from ccjax.cli import (
-    calibrate,
-    catalogue,
-    indexing,
-    photos,
-    sharpen,
-    synthetic,
-    training,
-)
+# Nothing here imports more than the standard library at module level: the console script imports
+# this module before :func:`main` can catch Ctrl-C, so the command groups (and through them JAX) are
+# imported inside :func:`main` and on first use of ``GROUPS`` / ``COMMANDS`` (PEP 562 ``__getattr__``).
+if TYPE_CHECKING:
+    import argparse
+    from collections.abc import Callable
+    from types import ModuleType
 
-GROUPS = (synthetic, catalogue, photos, indexing, training, sharpen, calibrate)
-"""The command groups, in ``ccjax --help`` order."""
+    GROUPS: tuple[ModuleType, ...]
+    COMMANDS: list[Callable[..., None]]
+    DEFAULT_COMPARE_METHODS: list[str]
+    DEFAULT_INDEXING_METHODS: list[str]
 
-COMMANDS = [add for group in GROUPS for add in group.COMMANDS]
 
-# Old paths of the single-module CLI, kept for one release.
-DEFAULT_COMPARE_METHODS = synthetic.DEFAULT_COMPARE_METHODS
-DEFAULT_INDEXING_METHODS = indexing.DEFAULT_INDEXING_METHODS
+def groups() -> tuple[ModuleType, ...]:
+    """The command groups, in ``ccjax --help`` order (``GROUPS``)."""
+    from ccjax.cli import calibrate, catalogue, indexing, photos, sharpen, synthetic, training
+
+    return (synthetic, catalogue, photos, indexing, training, sharpen, calibrate)
+
+
+def __getattr__(name: str) -> object:
+    """``GROUPS``, ``COMMANDS`` (every group's ``add_`` functions) and, kept for one release from the
+    single-module CLI, ``DEFAULT_COMPARE_METHODS`` / ``DEFAULT_INDEXING_METHODS``."""
+    if name == "GROUPS":
+        return groups()
+    if name == "COMMANDS":
+        return [add for group in groups() for add in group.COMMANDS]
+    if name == "DEFAULT_COMPARE_METHODS":
+        from ccjax.cli.synthetic import DEFAULT_COMPARE_METHODS
+
+        return DEFAULT_COMPARE_METHODS
+    if name == "DEFAULT_INDEXING_METHODS":
+        from ccjax.cli.indexing import DEFAULT_INDEXING_METHODS
+
+        return DEFAULT_INDEXING_METHODS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``ccjax`` argument parser with every sub-command."""
+    import argparse
+
     parser = argparse.ArgumentParser(
         prog="ccjax",
         description="JAX colour constancy: estimate and correct the colour of the light.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    for add in COMMANDS:
-        add(sub)
+    for group in groups():
+        for add in group.COMMANDS:
+            add(sub)
     return parser
+
+
+def prefix(command: str | None) -> str:
+    """``"ccjax <command>"`` for messages, ``"ccjax"`` before the command is known."""
+    return f"ccjax {command}" if command else "ccjax"
+
+
+def interrupted(error: BaseException) -> bool:
+    """Whether ``error`` is Ctrl-C or was caused by it: a ``KeyboardInterrupt`` raised while an
+    extension module initialises (numpy, jaxlib) reaches the caller as an ``ImportError`` whose
+    ``__cause__`` / ``__context__`` chain holds it."""
+    seen: set[int] = set()
+    current: BaseException | None = error
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
+def redeliver_interrupts(unraisable) -> None:
+    """A ``sys.unraisablehook`` that passes Ctrl-C on instead of swallowing it.
+
+    Python runs the SIGINT handler at the next Python code, which after a long C call (an XLA
+    compilation) is often a garbage-collector callback (JAX registers one) or a ``__del__``; an
+    exception there cannot propagate, so Python would print "Exception ignored in ..." and go on.
+    Instead the interrupt is delivered again a moment later, from a helper thread, to the code that
+    runs then (again, until it lands in ordinary code, which stops the command as Ctrl-C should).
+
+    Arguments:
+        unraisable: what Python passes to ``sys.unraisablehook``.
+
+    Returns:
+        None.
+    """
+    if isinstance(unraisable.exc_value, KeyboardInterrupt):
+        import _thread
+        import threading
+
+        timer = threading.Timer(0.01, _thread.interrupt_main)
+        timer.daemon = True  # never delays the exit
+        timer.start()
+    else:
+        sys.__unraisablehook__(unraisable)
+
+
+def import_holding_interrupts(*names: str) -> None:
+    """Import modules with Ctrl-C held until they are loaded, then raise it.
+
+    A ``KeyboardInterrupt`` inside an extension module's initialisation is not always an ordinary
+    exception: numpy's C API prints it and raises an unrelated ``ImportError`` in jaxlib's
+    initialisation, and an interrupted jaxlib has crashed the interpreter (SIGSEGV) at exit. JAX
+    is therefore imported whole, and an interrupt received meanwhile is raised right after.
+
+    Arguments:
+        names: the modules, imported in this order.
+
+    Returns:
+        None.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C came during the imports.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or (
+        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        for name in names:  # handlers can only be set in the main thread; keep a caller's own
+            __import__(name)
+        return
+    received: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        for name in names:
+            __import__(name)  # as the import statement does (``-X importtime`` reports it)
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if received:
+        raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``ccjax`` with ``argv`` (default: the process arguments).
 
     Errors in arguments, files and folders (``ValueError``, ``OSError``) print one line and give 2;
-    Ctrl-C prints one line and gives 130 (128 + SIGINT), without a traceback.
+    Ctrl-C at any time, also while JAX is being imported (``import ccjax`` defers it to first use),
+    prints one line and gives 130 (128 + SIGINT), without a traceback.
 
     Arguments:
         argv: the arguments after ``ccjax``.
@@ -55,20 +160,40 @@ def main(argv: list[str] | None = None) -> int:
     Returns:
         The exit code.
     """
-    args = build_parser().parse_args(argv)
+    command = None
+    previous_hook, sys.unraisablehook = sys.unraisablehook, redeliver_interrupts
     try:
+        args = build_parser().parse_args(argv)
+        command = args.command
+        import_holding_interrupts("numpy", "jax")  # every command needs them
         return int(args.func(args) or 0)
-    except (ValueError, OSError) as error:
+    except BaseException as error:
+        if interrupted(error):
+            print(f"{prefix(command)}: interrupted", file=sys.stderr)
+            return 130
         if isinstance(error, BrokenPipeError):
             # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;
             # stdout goes to devnull so the interpreter's final flush does not raise again.
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 1
-        print(f"ccjax {args.command}: error: {error}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"ccjax {args.command}: interrupted", file=sys.stderr)
-        return 130
+        if isinstance(error, (ValueError, OSError)):
+            print(f"{prefix(command)}: error: {error}", file=sys.stderr)
+            return 2
+        raise
+    finally:
+        sys.unraisablehook = previous_hook
 
 
-__all__ = ["COMMANDS", "DEFAULT_COMPARE_METHODS", "DEFAULT_INDEXING_METHODS", "GROUPS", "build_parser", "main"]
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_COMPARE_METHODS",
+    "DEFAULT_INDEXING_METHODS",
+    "GROUPS",
+    "build_parser",
+    "groups",
+    "import_holding_interrupts",
+    "interrupted",
+    "main",
+    "prefix",
+    "redeliver_interrupts",
+]

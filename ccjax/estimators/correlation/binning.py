@@ -17,14 +17,38 @@ N_RG_CELLS = RG_BINS * (RG_BINS + 1) // 2  # bins (i, j) with i + j <= 49
 
 
 def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, " P"]:
-    # A black pixel has no chromaticity: it carries no evidence about the light.
-    return mask & (jnp.sum(rgb, axis=-1) > TINY)
+    """The pixels that carry evidence about the light: masked in and not black.
+
+    A black pixel has no chromaticity. "Black" is relative to the scene's brightest masked pixel
+    (``R+G+B`` at most ``TINY`` times its), not an absolute level, so that the test, like the
+    chromaticities it guards, does not depend on the scene's scale: a scene multiplied by 1e-12
+    keeps every pixel, and an all-zero scene keeps none.
+
+    Arguments:
+        rgb: ``(P, 3)`` non-negative camera RGB.
+        mask: ``(P,)`` True where a pixel may be used.
+
+    Returns:
+        ``(P,)`` booleans.
+    """
+    total = jnp.sum(rgb, axis=-1)
+    brightest = jnp.max(jnp.where(mask, total, 0.0))
+    return mask & (total > TINY * brightest)
+
+
+def chromaticity(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
+    """Scale-free (r,g) of each pixel: :func:`ccjax._colour.rg` of the pixel divided by its largest
+    channel, so that a dark but valid pixel (a scene scaled by 1e-12) is not taken for black by
+    ``rg``'s absolute threshold. Black pixels give the achromatic point, as ``rg``."""
+    peak = jnp.max(rgb, axis=-1, keepdims=True)
+    return rg(rgb / jnp.where(peak > 0, peak, 1.0))
 
 
 def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:
-    """(r,g) bin coordinates ``floor(50 r), floor(50 g)`` clipped to ``0..49`` (§4.5.4); a black
-    pixel lands in the achromatic bin (the kernels ignore black pixels)."""
-    return rg_bin(rg(rgb), RG_BINS)
+    """(r,g) bin coordinates ``floor(50 r), floor(50 g)`` clipped to ``0..49`` (§4.5.4), from the
+    scale-free :func:`chromaticity`; a black pixel lands in the achromatic bin (the kernels ignore
+    black pixels)."""
+    return rg_bin(chromaticity(rgb), RG_BINS)
 
 
 def rg_bins_np(rgb: np.ndarray) -> np.ndarray:
@@ -101,7 +125,7 @@ def soft_presence_scores(
     """Differentiable :func:`presence_scores`: each pixel spreads over the 2 x 2 bins around it
     (:func:`soft_axis`), bins are present with probability ``1 - prod(1 - w)``."""
     # Black pixels sit at the achromatic point; their weights are zeroed by ``valid``.
-    scaled = rg(rgb) * RG_BINS
+    scaled = chromaticity(rgb) * RG_BINS
     (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
     ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
     cells = (ri[:, :, None] * RG_BINS + gi[:, None, :]).reshape(-1)

@@ -1,0 +1,57 @@
+"""``ccjax.estimate``: one call from a label (or a fitted model) and a scene to an :class:`Estimate`."""
+
+from __future__ import annotations
+
+import functools
+
+from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, fit, validate_input
+from ccjax.world import World
+
+
+@functools.cache
+def _default_world() -> World:
+    return World.default()
+
+
+def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
+    """Estimate the illuminant of one scene or a batch, with a label or a fitted model.
+
+    The model's input kind decides what ``x`` is: surface estimators take a surface list ``(P, 3)``
+    or a batch ``(B, P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch
+    ``(B, H, W, 3)``. Anything else raises a ``ValueError`` saying what to pass (images reach
+    surface estimators through the image pipeline, :mod:`ccjax.preprocessing`).
+
+    Arguments:
+        method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ``"grey-edge-1-6-2"``, ...) or a
+            fitted estimator.
+        x: linear camera RGB, non-negative and finite.
+        mask: optional booleans ``x.shape[:-1]``, True where a surface or pixel is valid.
+        world: the world a label is fitted to (default :meth:`World.default`).
+
+    Returns:
+        An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like ``x``.
+    """
+    if isinstance(method, str):
+        model = fit(method, world if world is not None else _default_world())
+    elif isinstance(method, AbstractEstimator):
+        model = method
+    else:
+        raise ValueError(f"method: expected a label or a fitted estimator, got {type(method).__name__}")
+    x, mask = validate_input(model, x, mask)
+    return _run(model, x, mask)
+
+
+@functools.cache
+def _compiled_runner():
+    import equinox as eqx
+
+    @eqx.filter_jit
+    def run(model, x, mask):
+        one_scene_ndim = 2 if model.input_kind == "surfaces" else 3
+        return model(x, mask) if x.ndim == one_scene_ndim else estimate_batch(model, x, mask)
+
+    return run
+
+
+def _run(model, x, mask):
+    return _compiled_runner()(model, x, mask)
