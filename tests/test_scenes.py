@@ -364,3 +364,14 @@ def test_mondrian_materials(default_world, material_tables):
     visible = np.linalg.norm(diff, axis=-1) > 1e-3
     assert visible.mean() > 0.2 and np.all(cosine.max(axis=-1)[visible] > 1 - 1e-4)
     assert np.isfinite(np.asarray(metal.image)).all()
+
+
+def test_materials_run_under_x64(default_world):
+    """A float32 world under ``jax_enable_x64`` (strict promotion, as the suite runs): every option
+    draws in the tables' dtype, so scenes and Mondrians stay float32 and finite."""
+    with jax.enable_x64(True):
+        options = dict(specular=True, metallic=True, fluorescent=True, noise=True, clip=300 / 255)
+        batch = sample(jax.random.key(9), default_world, 5, 8, **options)
+        images = scenes.sample_mondrians(jax.random.key(1), default_world, 2, height=16, width=16, **options)
+    assert batch.rgb.dtype == images.image.dtype == np.float32
+    assert np.isfinite(np.asarray(batch.rgb)).all() and np.isfinite(np.asarray(images.image)).all()

@@ -90,7 +90,7 @@ def mondrian_layout(key: PRNGKeyArray, height: int, width: int, n_patches: int) 
     offset = 0
     for index, count in enumerate(counts):  # a few bands: a static loop, not over pixels
         col_edges = jnp.cumsum(_proportions(key_cols[index], count))[:-1]
-        col = jnp.sum(x[:, None] >= col_edges[None, :], axis=1)  # (W,)
+        col = jnp.sum(x[:, None] >= col_edges[None, :], axis=1, dtype=jnp.int32)  # (W,)
         labels = jnp.where((row == index)[:, None], offset + col[None, :], labels)
         offset += count
     return labels
@@ -100,7 +100,7 @@ def _highlight_blobs(labels: Int[Array, "H W"], n_patches: int, dtype) -> Float[
     """Per pixel, a Gaussian blob centred in its patch (width a quarter of the patch's size), peak 1."""
     height, width = labels.shape
     yy, xx = jnp.meshgrid(jnp.arange(height, dtype=dtype), jnp.arange(width, dtype=dtype), indexing="ij")
-    one_hot = (labels[..., None] == jnp.arange(n_patches)).astype(dtype)  # (H, W, P); counts exact
+    one_hot = (labels[..., None] == jnp.arange(n_patches, dtype=labels.dtype)).astype(dtype)  # (H, W, P); counts exact
     area = jnp.maximum(jnp.sum(one_hot, axis=(0, 1)), 1.0)
     centre_y = jnp.sum(one_hot * yy[..., None], axis=(0, 1)) / area
     centre_x = jnp.sum(one_hot * xx[..., None], axis=(0, 1)) / area
@@ -140,11 +140,13 @@ def render_mondrian(
     """
     n_patches = patch_rgb.shape[0]
     key_shade, key_spec, key_amount, key_noise = jax.random.split(key, 4)
-    shade = jax.random.uniform(key_shade, (n_patches,), minval=shading[0], maxval=shading[1])
+    # Draws in the patches' dtype (float32 tables under jax_enable_x64 must not meet float64 draws).
+    shade = jax.random.uniform(key_shade, (n_patches,), patch_rgb.dtype, minval=shading[0], maxval=shading[1])
     image = (shade[:, None] * patch_rgb)[labels]
     if specular is not None:
         is_specular = jax.random.uniform(key_spec, (n_patches,)) < specular.probability
-        amount = jnp.where(is_specular, jax.random.uniform(key_amount, (n_patches,)) * specular.max_amount, 0.0) * shade
+        draw = jax.random.uniform(key_amount, (n_patches,), patch_rgb.dtype)
+        amount = jnp.where(is_specular, draw * specular.max_amount, 0.0) * shade
         blob = _highlight_blobs(labels, n_patches, image.dtype)
         image = image + (amount[labels] * blob)[..., None] * white
     if metallic is not None:
@@ -153,7 +155,7 @@ def render_mondrian(
         key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
         is_metal = jax.random.uniform(key_which, (n_patches,)) < metallic.probability
         metal = jax.random.randint(key_metal, (n_patches,), 0, metal_rgb.shape[0])
-        strength = jax.random.uniform(key_strength, (n_patches,)) * metallic.max_amount
+        strength = jax.random.uniform(key_strength, (n_patches,), patch_rgb.dtype) * metallic.max_amount
         strength = jnp.where(is_metal, strength, 0.0) * shade
         blob = _highlight_blobs(labels, n_patches, image.dtype)
         image = image + (strength[labels] * blob)[..., None] * metal_rgb[metal][labels]

@@ -343,7 +343,9 @@ def sample_one(
         canonical = jnp.where(is_fluorescent[:, None], tables.canonical_fluorescent_rgb[identity], canonical)
     if specular is not None:
         is_specular = jax.random.uniform(key_spec, (n_surfaces,)) < specular.probability
-        amount = jnp.where(is_specular, jax.random.uniform(key_amount, (n_surfaces,)) * specular.max_amount, 0.0)
+        # Draws in the tables' dtype (float32 tables under jax_enable_x64 must not meet float64 draws).
+        draw = jax.random.uniform(key_amount, (n_surfaces,), rgb.dtype)
+        amount = jnp.where(is_specular, draw * specular.max_amount, 0.0)
         rgb = rgb + amount[:, None] * white
         canonical = canonical + amount[:, None] * tables.canonical_white
     if metallic is not None:
@@ -352,12 +354,13 @@ def sample_one(
         key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
         is_metal = jax.random.uniform(key_which, (n_surfaces,)) < metallic.probability
         metal = jax.random.randint(key_metal, (n_surfaces,), 0, tables.metal_rgb.shape[1])
-        strength = jnp.where(is_metal, jax.random.uniform(key_strength, (n_surfaces,)) * metallic.max_amount, 0.0)
+        draw = jax.random.uniform(key_strength, (n_surfaces,), rgb.dtype)
+        strength = jnp.where(is_metal, draw * metallic.max_amount, 0.0)
         rgb = rgb + strength[:, None] * tables.metal_rgb[light, metal]
         canonical = canonical + strength[:, None] * tables.canonical_metal_rgb[metal]
     if noise is not None:
         sigma = jnp.sqrt(noise.a * rgb + noise.b)
-        rgb = jnp.maximum(rgb + sigma * jax.random.normal(key_noise, rgb.shape), 0.0)
+        rgb = jnp.maximum(rgb + sigma * jax.random.normal(key_noise, rgb.shape, rgb.dtype), 0.0)
     mask = jnp.ones((n_surfaces,), bool)
     if clip is not None:
         mask = jnp.all(rgb <= clip, axis=-1)
