@@ -7,6 +7,7 @@ lights, then every transform is scored on held-out scenes under the *test* light
 * a non-linear estimator (default soft-RETINEX-t0.01) with the angular error.
 
 Run:  python examples/learned_sharpening.py [--world barnard1999|default] [--camera NAME] [--steps 200]
+(``--quick``: the default world, 10 steps, 200 held-out scenes: a smoke test).
 """
 
 from __future__ import annotations
@@ -22,14 +23,17 @@ from ccjax.experiments.chapter5 import evaluate_transforms
 from ccjax.world import World
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--world", choices=["barnard1999", "default"], default="barnard1999")
     parser.add_argument("--camera", default=None, help="camera of the default world")
     parser.add_argument("--nonlinear", default="soft-RETINEX-t0.01", help="non-linear estimator trained on the angle")
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--scenes", type=int, default=1000, help="held-out test scenes")
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true", help="default world, 10 steps, 200 scenes (smoke test)")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.world, args.steps, args.scenes = "default", 10, 200
 
     world = World.barnard1999() if args.world == "barnard1999" else World.default(args.camera or "Canon EOS 5D Mark II")
     start = time.perf_counter()
@@ -57,7 +61,8 @@ def main() -> None:
         print(
             f"{label:<22}{loss:<11}{name:<9}{score['map_rgb']:>10.2f}{score['angular']:>8.3f}{score['reverted']:>10d}"
         )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -17,8 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
-from ccjax import metrics
 from ccjax.estimators.base import AbstractEstimator
+from ccjax.losses import angular_errors
 from ccjax.scenes import draw_scenes, sweep_keys
 from ccjax.sharpening.new_method import on_sphere
 from ccjax.sharpening.transforms import THESIS_SCALE, database_responses, mapping_error
@@ -84,7 +84,7 @@ def scene_losses(
         mask: Bool[Array, " P"] = jnp.ones(chosen.shape, bool)
         estimate = model(rgb, mask).illuminant
         if loss == "angular":
-            return metrics.angular_error(estimate, whites[light])
+            return angular_errors(estimate, whites[light])  # safe gradients (ccjax.losses)
         sharp_map = (canonical_white @ transform) / (estimate @ transform)
         return mapping_error(train[light], canonical, transform, sharp_map) * THESIS_SCALE
 
