@@ -49,6 +49,11 @@ excitation, which drives real optical brighteners, is absent.
 (non-negative least squares over all 101 samples, unweighted, ``scipy.optimize.nnls``) and predict
 ``L(E) ≈ Σ α*_k R_k``. This is exact when ``E`` lies in the non-negative span of the ``E_k`` and
 an approximation otherwise; :func:`prediction_error` measures how good it is under other lights.
+Measured for the nine surfaces (RMS over the test lights other than the measurement lights):
+with the 11 lab lights, predicting under the thesis world's 299 other test lights, the (r,g) error
+is 0.045–0.054 per surface (relative spectral error 15–17 %), about the error of the same NNLS
+approximation of the light itself (0.046 for a white surface): the 11 lab lights do not span
+daylight-like spectra. With all 91 training lights as measurement lights it is 0.003–0.004 (267 other test lights).
 
 **Training and test conditions**: :data:`FLUORESCENT_PROBABILITY` (each surface slot fluorescent
 with p = 0.3 in the test scenes, A21; see :class:`ccjax.scenes.Fluorescent`) and
@@ -366,7 +371,9 @@ def lab_lights(data_dir=None) -> np.ndarray:
         data_dir: external data directory (see :func:`ccjax.data.find_data_file`).
 
     Returns:
-        ``(11, 101)`` float64 spectra (unnormalised; the characterisation is scale-free).
+        ``(11, 101)`` float64 spectra (unnormalised; the characterisation is scale-free). They are,
+        up to scale, ``World.barnard1999().train_illuminants[:11]`` (a world's priority lights
+        come first in its illuminant sets).
     """
     from ccjax import data
 
