@@ -24,7 +24,14 @@ from ccjax.spectra import N_WAVELENGTHS
 
 
 def second_difference(n: int = N_WAVELENGTHS) -> np.ndarray:
-    """The ``(n-2, n)`` second-difference matrix S of eq. 3.4 (rows ``-1, 2, -1``)."""
+    """The ``(n-2, n)`` second-difference matrix S of eq. 3.4 (rows ``-1, 2, -1``).
+
+    Arguments:
+        n: number of samples.
+
+    Returns:
+        The ``(n - 2, n)`` float64 matrix.
+    """
     S = np.zeros((n - 2, n))
     for row in range(n - 2):
         S[row, row : row + 3] = (-1.0, 2.0, -1.0)

@@ -195,6 +195,9 @@ def fit_subsets(
         masks: ``(B, M)`` row selections.
         smoothness: a scalar, or ``(B,)`` one lambda per fit (cross-validation grids).
         **options: as :func:`ccjax.calibration.fit_sensors`.
+
+    Returns:
+        The :class:`BatchFit` of the ``B`` fits.
     """
     spectra, responses = check_data(spectra, responses)
     masks = np.asarray(masks, bool)
@@ -220,6 +223,9 @@ def evaluate_batch(fits: BatchFit, spectra, responses, mask=None, *, linearised:
     Arguments:
         linearised: True when ``responses`` are raw and each fit's own F is to be applied (joint
             fits); False when they are already linear.
+
+    Returns:
+        The :class:`FitErrors` of every fit, batched over the fits.
     """
     spectra, responses = check_data(spectra, responses, mask)
     dtype = fits.sensors.dtype
@@ -232,7 +238,18 @@ def evaluate_batch(fits: BatchFit, spectra, responses, mask=None, *, linearised:
 
 def random_subsets(n_rows: int, size: int, count: int, seed: int = 0, within=None) -> np.ndarray:
     """``count`` random row subsets of ``size`` rows (without replacement) as ``(count, n_rows)``
-    masks; ``within`` restricts the draw to the rows a mask selects."""
+    masks; ``within`` restricts the draw to the rows a mask selects.
+
+    Arguments:
+        n_rows: rows of the data set.
+        size: rows per subset.
+        count: number of subsets.
+        seed: NumPy seed.
+        within: optional ``(n_rows,)`` mask of the rows to draw from.
+
+    Returns:
+        ``(count, n_rows)`` boolean masks.
+    """
     rows = np.flatnonzero(np.ones(n_rows, bool) if within is None else np.asarray(within, bool))
     if not 0 < size <= rows.size:
         raise ValueError(f"size: expected 1..{rows.size}, got {size}")
@@ -245,7 +262,13 @@ def random_subsets(n_rows: int, size: int, count: int, seed: int = 0, within=Non
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """Cross-validation of the smoothness: held-out RMS relative error per lambda and fold."""
+    """Cross-validation of the smoothness: held-out RMS relative error per lambda and fold.
+
+    Attributes:
+        smoothness: the lambda grid.
+        errors: held-out RMS relative errors, per lambda and fold.
+        best: the lambda with the least mean held-out error.
+    """
 
     smoothness: np.ndarray  # (G,)
     errors: np.ndarray  # (G, K)

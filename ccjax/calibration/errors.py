@@ -36,6 +36,14 @@ def fit_errors(
 
     Relative errors use only entries with a positive measured response; chromaticity errors only
     rows with a positive sum. ``mask`` (True = use) selects measurements.
+
+    Arguments:
+        predicted: ``(M, 3)`` predicted linear responses.
+        measured: ``(M, 3)`` measured linear responses.
+        mask: optional ``(M,)`` selection (True = use).
+
+    Returns:
+        The :class:`FitErrors` (Table 3.1's columns).
     """
     predicted = jnp.asarray(predicted)
     measured = jnp.asarray(measured)
@@ -68,6 +76,10 @@ def support_of(sensors: Float[ArrayLike, "101 3"], threshold: float = 0.01) -> n
 
     Returns:
         ``(3, 2)`` [min_nm, max_nm] per channel, for ``fit_sensors(support=...)``.
+
+    Arguments:
+        sensors: ``(101, 3)`` sensor curves.
+        threshold: the fraction of the peak that bounds the main peak.
     """
     sensors = np.asarray(sensors, dtype=np.float64)
     out = np.zeros((3, 2))
@@ -86,7 +98,15 @@ def support_of(sensors: Float[ArrayLike, "101 3"], threshold: float = 0.01) -> n
 
 
 def curve_error(fitted: Float[ArrayLike, "101 3"], truth: Float[ArrayLike, "101 3"]) -> np.ndarray:
-    """RMS over wavelengths of ``fitted - truth`` as a fraction of each true curve's peak, ``(3,)``."""
+    """RMS over wavelengths of ``fitted - truth`` as a fraction of each true curve's peak, ``(3,)``.
+
+    Arguments:
+        fitted: ``(101, 3)`` fitted sensor curves.
+        truth: ``(101, 3)`` true curves.
+
+    Returns:
+        ``(3,)`` relative RMS errors.
+    """
     fitted = np.asarray(fitted, dtype=np.float64)
     truth = np.asarray(truth, dtype=np.float64)
     return np.sqrt(np.mean((fitted - truth) ** 2, axis=0)) / truth.max(axis=0)

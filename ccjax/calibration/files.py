@@ -34,7 +34,13 @@ class CalibrationFileError(ValueError):
 
 @dataclass(frozen=True)
 class CalibrationData:
-    """Measurements read from a file: ``spectra (M, 101)``, raw ``responses (M, 3)``, source lines."""
+    """Measurements read from a file: ``spectra (M, 101)``, raw ``responses (M, 3)``, source lines.
+
+    Attributes:
+        spectra: ``(M, 101)`` measured spectra on the ccjax grid.
+        responses: ``(M, 3)`` raw camera responses.
+        lines: ``(M,)`` the file's line number of each measurement.
+    """
 
     spectra: np.ndarray
     responses: np.ndarray
@@ -57,6 +63,13 @@ def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -
             negative (naming line and column), a header that does not match the grid, or fewer
             than ``min_rows`` measurements.
         FileNotFoundError: the file does not exist.
+
+    Arguments:
+        path: the CSV file.
+        min_rows: the least number of measurements accepted.
+
+    Returns:
+        The :class:`CalibrationData`.
     """
     path = os.fspath(path)
     rows: list[list[float]] = []
@@ -137,7 +150,13 @@ def _check_header(path: str, line_number: int, fields: list[str]) -> None:
 
 
 def write_calibration_csv(path: str | os.PathLike, spectra: np.ndarray, responses: np.ndarray) -> None:
-    """Write measurements in the calibration-file format (with the header)."""
+    """Write measurements in the calibration-file format (with the header).
+
+    Arguments:
+        path: the CSV file to write.
+        spectra: ``(M, 101)`` spectra.
+        responses: ``(M, 3)`` raw responses.
+    """
     spectra = np.asarray(spectra, dtype=np.float64)
     responses = np.asarray(responses, dtype=np.float64)
     if spectra.ndim != 2 or spectra.shape[1] != N_WAVELENGTHS or responses.shape != (spectra.shape[0], 3):
@@ -153,7 +172,13 @@ def write_calibration_csv(path: str | os.PathLike, spectra: np.ndarray, response
 
 def write_sensors_csv(path: str | os.PathLike, sensors: np.ndarray, linearisation=None) -> None:
     """Write fitted curves as ``wavelength_nm,R,G,B`` (101 rows); the linearisation, if any, as a
-    leading ``#`` comment."""
+    leading ``#`` comment.
+
+    Arguments:
+        path: the CSV file to write.
+        sensors: ``(101, 3)`` sensor curves.
+        linearisation: an optional :class:`Linearisation` written as a comment.
+    """
     sensors = np.asarray(sensors, dtype=np.float64)
     with open(path, "w", newline="") as f:
         if linearisation is not None:

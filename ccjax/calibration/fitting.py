@@ -46,7 +46,14 @@ from ccjax.camera import Camera
 
 
 class FitStatus(eqx.Module):
-    """How the solver did, per channel."""
+    """How the solver did, per channel.
+
+    Attributes:
+        solver: the solver's name.
+        converged: ``(3,)`` whether each channel's solve converged.
+        kkt_residual: ``(3,)`` the optimality (KKT) residual per channel.
+        iterations: ``(3,)`` iterations per channel.
+    """
 
     solver: str = eqx.field(static=True)
     converged: Bool[Array, "3"]
@@ -214,5 +221,15 @@ def pseudo_inverse(spectra, responses, *, positive: bool = False, mask=None, nam
     ``positive=False``: the minimum-norm least-squares solution of ``r = L R`` (no constraint, no
     smoothing; spiky and with negative lobes, Fig. 3.4). ``positive=True``: the same absolute error
     with R >= 0 (Fig. 3.5), solved by :func:`fit_sensors` with ``smoothness=0``.
+
+    Arguments:
+        spectra: ``(M, 101)`` measured spectra.
+        responses: ``(M, 3)`` linear responses.
+        positive: constrain the curves to be non-negative.
+        mask: optional ``(M,)`` selection of measurements (True = use).
+        name: the fit's label.
+
+    Returns:
+        The :class:`SensorFit`.
     """
     return fit_sensors(spectra, responses, smoothness=0.0, error="absolute", positive=positive, mask=mask, name=name)

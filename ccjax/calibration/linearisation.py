@@ -15,6 +15,12 @@ class Linearisation:
 
     Hashable, so it can be a :class:`~ccjax.camera.Camera`'s static ``linearisation``. Calling it
     maps raw responses ``(..., 3)`` to linear ones. ``a1 = 0`` is the offset-only form (3.15).
+
+    Attributes:
+        a0: offset per channel.
+        a1: exponential term's amplitude per channel (0: the offset-only form).
+        exp_rate: the exponential rate ``C`` per channel.
+        black: the camera black ``b`` per channel.
     """
 
     a0: tuple[float, float, float]
@@ -40,13 +46,30 @@ class Linearisation:
 
 
 def apply_linearisation(raw, a0, a1, exp_rate, black):
-    """``F(raw) = raw - a0 - a1 exp(-C (raw - b))`` element-wise per channel (eq. 3.14)."""
+    """``F(raw) = raw - a0 - a1 exp(-C (raw - b))`` element-wise per channel (eq. 3.14).
+
+    Arguments:
+        raw: raw responses ``(..., 3)``.
+        a0, a1, exp_rate, black: the parameters of ``F`` per channel (broadcast against ``raw``).
+
+    Returns:
+        The linear responses, the shape of ``raw``.
+    """
     raw = jnp.asarray(raw)
     return raw - a0 - a1 * jnp.exp(-exp_rate * (raw - black))
 
 
 def invert_linearisation(linear, a0, a1, exp_rate, black, *, steps: int = 60):
-    """Raw values ``x`` with ``F(x) = linear`` (Newton; F is strictly increasing for a1, C >= 0)."""
+    """Raw values ``x`` with ``F(x) = linear`` (Newton; F is strictly increasing for a1, C >= 0).
+
+    Arguments:
+        linear: linear responses ``(..., 3)``.
+        a0, a1, exp_rate, black: the parameters of ``F`` per channel.
+        steps: Newton iterations.
+
+    Returns:
+        The raw values, the shape of ``linear``.
+    """
     linear = np.asarray(linear, dtype=np.float64)
     x = linear + a0 + np.maximum(a1, 0.0)
     for _ in range(steps):

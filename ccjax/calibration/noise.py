@@ -98,7 +98,18 @@ def synthetic_repeats(
     seed: int = 0,
 ) -> np.ndarray:
     """Repeated noisy measurements of stimuli at ``levels`` (``(repeats, N)``), Gaussian with
-    variance ``gain * level + floor`` — the thesis' Fig. 3.1 experiment for a known model."""
+    variance ``gain * level + floor`` — the thesis' Fig. 3.1 experiment for a known model.
+
+    Arguments:
+        levels: ``(N,)`` noise-free stimulus levels.
+        repeats: measurements per level.
+        gain: the variance's gain (per unit level).
+        floor: the variance's floor.
+        seed: NumPy seed.
+
+    Returns:
+        ``(repeats, N)`` noisy measurements.
+    """
     levels = np.asarray(levels, dtype=np.float64)
     if levels.ndim != 1 or np.any(levels < 0) or not np.all(np.isfinite(levels)):
         raise ValueError("levels: expected a 1-D array of finite values >= 0")

@@ -93,7 +93,11 @@ class Reflectances:
 
 @functools.cache
 def sfu_reflectances() -> Reflectances:
-    """The 1993 SFU reflectances (Barnard et al. 2002), embedded; Barnard 1999 §4.4."""
+    """The 1993 SFU reflectances (Barnard et al. 2002), embedded; Barnard 1999 §4.4.
+
+    Returns:
+        The reflectances ``(1993, 101)`` with their category labels.
+    """
     with np.load(EMBEDDED / "sfu_reflectances_1993.npz") as f:
         values = resample(f["wavelengths"], f["reflectances"], kind="spectrum")
         return Reflectances(values=values, categories=f["categories"].astype(str))
@@ -101,7 +105,11 @@ def sfu_reflectances() -> Reflectances:
 
 @functools.cache
 def rawtoaces_cameras() -> dict[str, np.ndarray]:
-    """The 52 embedded rawtoaces camera curves, name -> sensors ``(101, 3)`` (zero outside 380–780)."""
+    """The 52 embedded rawtoaces camera curves, name -> sensors ``(101, 3)`` (zero outside 380–780).
+
+    Returns:
+        Camera name -> ``(101, 3)`` sensors.
+    """
     with np.load(EMBEDDED / "rawtoaces_cameras.npz") as f:
         return {
             str(name): resample(f["wavelengths"], curves, kind="sensor")
@@ -114,7 +122,14 @@ def rawtoaces_cameras() -> dict[str, np.ndarray]:
 
 
 def sony_dxc930(data_dir=None) -> np.ndarray:
-    """Sony DXC-930 sensors ``(101, 3)`` (the thesis' camera, Barnard 1999 ch. 3), external."""
+    """Sony DXC-930 sensors ``(101, 3)`` (the thesis' camera, Barnard 1999 ch. 3), external.
+
+    Arguments:
+        data_dir: external data directory (see :func:`find_data_file` for the look-up order).
+
+    Returns:
+        ``(101, 3)`` sensor curves.
+    """
     path = find_data_file("sfu_barnard/sony_dxc930_380-780-4nm.csv", data_dir)
     table = np.loadtxt(path, delimiter=",", skiprows=1)
     sensors = table[:, 1:4]
@@ -131,7 +146,14 @@ class NamedSpectra:
 
 
 def sfu_illuminants(data_dir=None) -> NamedSpectra:
-    """The 99 SFU illuminant spectra (78 measured, the 11 lab lights, 10 others), external."""
+    """The 99 SFU illuminant spectra (78 measured, the 11 lab lights, 10 others), external.
+
+    Arguments:
+        data_dir: external data directory (see :func:`find_data_file` for the look-up order).
+
+    Returns:
+        The spectra ``(99, 101)`` with their names.
+    """
     path = find_data_file("sfu_barnard/sfu_illuminants_380-780-4nm.csv", data_dir)
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
@@ -176,19 +198,40 @@ def _read_groundtruth(path: pathlib.Path, image: str, rgb: tuple[str, str, str],
 
 
 def sfu321_groundtruth(data_dir=None) -> GroundTruth:
-    """Ground-truth illuminants of the 321 SFU lab images (unit-norm Sony DXC-930 RGB), external."""
+    """Ground-truth illuminants of the 321 SFU lab images (unit-norm Sony DXC-930 RGB), external.
+
+    Arguments:
+        data_dir: external data directory (see :func:`find_data_file` for the look-up order).
+
+    Returns:
+        The ground truth (image names, illuminant RGBs).
+    """
     path = find_data_file("sfu_barnard/sfu321_groundtruth.csv", data_dir)
     return _read_groundtruth(path, "image", ("r", "g", "b"), "light")
 
 
 def gehler_shi_groundtruth(data_dir=None) -> GroundTruth:
-    """Gehler–Shi (568 images) recommended ground truth (Hemrit et al. 2018) with folds, external."""
+    """Gehler–Shi (568 images) recommended ground truth (Hemrit et al. 2018) with folds, external.
+
+    Arguments:
+        data_dir: external data directory (see :func:`find_data_file` for the look-up order).
+
+    Returns:
+        The ground truth (image names, illuminant RGBs, folds).
+    """
     path = find_data_file("gehler_shi_groundtruth/GT_HemritRec.txt", data_dir)
     return _read_groundtruth(path, "File", ("R", "G", "B"), "Fold")
 
 
 def jiang_cameras(data_dir=None) -> dict[str, np.ndarray]:
-    """The 28 Jiang et al. (2013) camera curves as ``"Jiang: <make> <model>" -> (101, 3)``, external."""
+    """The 28 Jiang et al. (2013) camera curves as ``"Jiang: <make> <model>" -> (101, 3)``, external.
+
+    Arguments:
+        data_dir: external data directory (see :func:`find_data_file` for the look-up order).
+
+    Returns:
+        Camera name -> ``(101, 3)`` sensors.
+    """
     folder = find_data_file("camera_ssf_jiang2013_camspec/README.md", data_dir).parent
     cameras = {}
     for path in sorted(folder.glob("*.csv")):

@@ -188,6 +188,10 @@ def fit_cached(label: str, world: World, **options) -> AbstractEstimator:
 
 def available() -> list[Entry]:
     """Every registered family's :class:`Entry` (``grammar``, ``example``, ``description``,
-    ``input_kind``, ``traceable_fit``, ``differentiable``), in registration order."""
+    ``input_kind``, ``traceable_fit``, ``differentiable``), in registration order.
+
+    Returns:
+        The entries.
+    """
     _load_families()
     return list(_ENTRIES)

@@ -308,7 +308,14 @@ class SweepResult:
 
 
 def is_registered(label: str) -> bool:
-    """True when ``label`` names a registered estimator (see ``ccjax methods``)."""
+    """Whether ``label`` names a registered estimator (see ``ccjax methods``).
+
+    Arguments:
+        label: an estimator label.
+
+    Returns:
+        True when a registry family's grammar accepts it.
+    """
     try:
         registry.lookup(label)
         return True
@@ -321,6 +328,13 @@ def weights_ready(label: str, world: World) -> bool:
 
     Default method sets (``ccjax compare``, ``ccjax reproduce``) include the neural net (Barnard
     1999 §4.5.5) only once ``ccjax train-net`` has cached its weights.
+
+    Arguments:
+        label: an estimator label.
+        world: the world the weights must have been trained for.
+
+    Returns:
+        True for every label but a net's without cached weights.
     """
     from ccjax.estimators import neural
 
@@ -328,7 +342,15 @@ def weights_ready(label: str, world: World) -> bool:
 
 
 def runnable_methods(labels: Sequence[str], world: World) -> list[str]:
-    """The labels of ``labels`` that are registered and, if learned, have cached weights."""
+    """The labels of ``labels`` that are registered and, if learned, have cached weights.
+
+    Arguments:
+        labels: candidate labels, in order.
+        world: the world of the weights.
+
+    Returns:
+        The runnable labels, in the given order.
+    """
     return [label for label in labels if is_registered(label) and weights_ready(label, world)]
 
 
@@ -338,6 +360,10 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
     Sweeps sample scenes as lists of surface RGBs (Barnard 1999 §4.7); an image estimator (grey
     edge) needs ``(H, W, 3)`` images with neighbouring pixels, so it is run through the image
     experiments instead.
+
+    Arguments:
+        label: the model's label (named in the error).
+        model: a fitted estimator.
 
     Raises:
         ValueError: naming ``label`` when ``model`` is an image estimator.
@@ -355,7 +381,18 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
 
 
 def resolve_methods(world: World, methods) -> list[tuple[str, AbstractEstimator]]:
-    """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted)."""
+    """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted).
+
+    Arguments:
+        world: the world labels are fitted to.
+        methods: labels, fitted surface estimators, or ``(label, estimator)`` pairs.
+
+    Returns:
+        The pairs, in order.
+
+    Raises:
+        ValueError: an empty list, an unknown item or an image estimator.
+    """
     resolved = []
     for method in methods:
         if isinstance(method, str):

@@ -51,6 +51,20 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
     brightness). The estimate's magnitude is the brightness: ``b (r, g, 1 - r - g)``.
 
     Memory is bounded: levels are visited by a ``scan`` that keeps a running (online) softmax.
+
+    Attributes:
+        log_probability: ``(C, I)`` the log correlation matrix (last row: the outside cell).
+        illuminant_rg: ``(I, 2)`` the training illuminants' (r,g).
+        fallback: ``(3,)`` the light answered for a scene without data.
+        l_bins: L bins per unit of ``L / L_white``.
+        l_total: L bins of the matrix.
+        selector: ``"MAP"`` or ``"MMSE"``.
+        method: ``"presence"`` or ``"counts"``.
+        brightness_factor: ``B0 = factor x mean(R+G+B)``.
+        brightness_range: hypotheses within ``[B0 / k, k B0]``.
+        n_levels: brightness levels.
+        softness: soft binning width in bins (``None``: hard).
+        temperature: soft-MAP temperature.
     """
 
     log_probability: Float[Array, "C I"]
@@ -233,6 +247,9 @@ def fit_brightness(
         specular_steps: specular copies per surface in specular training.
         fluorescent: FL training (``FL-`` labels, ch. 10 Table 10.1): ``True`` for fluorescent
             surfaces at about 15 % of the training occurrences, or that fraction.
+
+    Returns:
+        The fitted :class:`ColourByCorrelation3D`.
     """
     if selector not in ("MAP", "MMSE"):
         raise ValueError(f"selector: expected MAP or MMSE, got {selector!r}")

@@ -82,7 +82,14 @@ class ColourByCorrelation01(AbstractSurfaceEstimator):
     """C-by-C-01 (§4.5.4): a 0/1 matrix from the convex hulls of the reflectances' (r,g); an
     illuminant's score is the number of scene bins consistent with it; the estimate is the mean
     (r,g) of the illuminants whose score is within ``tolerance`` of the maximum (by default those
-    within 1 of it)."""
+    within 1 of it).
+
+    Attributes:
+        compatible: ``(C, I)`` 0/1 matrix, bin ``C`` compatible with illuminant ``I``.
+        illuminant_rg: ``(I, 2)`` the training illuminants' (r,g).
+        fallback: ``(3,)`` the light answered for a scene without data.
+        tolerance: scores within it of the maximum are averaged.
+    """
 
     compatible: Float[Array, "C I"]
     illuminant_rg: Float[Array, "I 2"]
@@ -99,7 +106,15 @@ class ColourByCorrelation01(AbstractSurfaceEstimator):
 
 
 def mlm_mask(illuminant_rg, width: float) -> Float[Array, "I I"]:
-    """Gaussian weights ``exp(-|rg_i - rg_j|^2 / (2 (0.02 width)^2))`` between illuminants."""
+    """Gaussian weights ``exp(-|rg_i - rg_j|^2 / (2 (0.02 width)^2))`` between illuminants.
+
+    Arguments:
+        illuminant_rg: ``(I, 2)`` the illuminants' (r,g).
+        width: the mask's width in (r,g) bins of 0.02.
+
+    Returns:
+        ``(I, I)`` weights.
+    """
     rg = jnp.asarray(illuminant_rg)
     distance2 = jnp.sum((rg[:, None, :] - rg[None, :, :]) ** 2, axis=-1)
     return jnp.exp(-0.5 * distance2 / (width / RG_BINS) ** 2)
@@ -129,6 +144,9 @@ def fit_chromaticity(
         mlm_width: MLM mask width in bins; ``None`` chooses it as the thesis did (:func:`tune_mlm_width`).
         softness: soft binning (bins); ``None`` is the thesis' hard binning.
         temperature: soft MAP's softmax temperature on the log-posterior.
+
+    Returns:
+        The fitted :class:`ColourByCorrelation`.
     """
     if selector not in ("MAP", "MMSE", "MLM"):
         raise ValueError(f"selector: expected MAP, MMSE or MLM, got {selector!r}")
@@ -164,7 +182,18 @@ def mlm_width_search(
 ) -> dict[str, np.ndarray]:
     """The MLM mask-width search of :func:`tune_mlm_width` for the MMSE/MAP matrix with these
     options, cached on disk; ``["best"]`` is the width C-by-C-MLM uses (the validation scenes
-    have no fluorescent surfaces, so FL-C-by-C-MLM's width is tuned for the matte world)."""
+    have no fluorescent surfaces, so FL-C-by-C-MLM's width is tuned for the matte world).
+
+    Arguments:
+        world: the world.
+        sigma: matrix smoothing in bins.
+        floor: probability floor.
+        specular: specular training.
+        fluorescent: FL training.
+
+    Returns:
+        The search of :func:`tune_mlm_width` (``widths``, ``mean_error``, ``mmse_mean_error``, ``best``).
+    """
     specular = resolve_specular(specular)
     fluorescent = resolve_fluorescent(fluorescent)
     options = {"sigma": sigma, "floor": floor, "specular": repr(specular)}
@@ -198,6 +227,15 @@ def tune_mlm_width(
 
     Returns:
         ``{"widths", "mean_error" (per width), "mmse_mean_error", "best"}``.
+
+    Arguments:
+        world: the world.
+        model: the fitted MMSE/MAP estimator whose matrix the mask is applied to.
+        widths: the candidate widths in bins.
+        n_scenes: validation scenes.
+        n_surfaces: surfaces per validation scene.
+        seed: NumPy seed of the validation scenes.
+        specular: specular validation scenes.
     """
     rng = np.random.default_rng(seed)
     sensors = np.asarray(world.camera.sensors, np.float64)
@@ -226,7 +264,15 @@ def tune_mlm_width(
 
 
 def fit_hull(world: World, *, tolerance: float = 1.0) -> ColourByCorrelation01:
-    """Fit C-by-C-01 (§4.5.4); ``tolerance``: scores within it of the maximum are averaged."""
+    """Fit C-by-C-01 (§4.5.4); ``tolerance``: scores within it of the maximum are averaged.
+
+    Arguments:
+        world: the world.
+        tolerance: scores within it of the maximum are averaged.
+
+    Returns:
+        The fitted :class:`ColourByCorrelation01`.
+    """
     tolerance = check_positive("tolerance", tolerance, allow_zero=True)
     return ColourByCorrelation01(
         compatible=jnp.asarray(hull_matrix(world)),

@@ -34,6 +34,12 @@ def training_responses(
 
     Returns:
         ``(rgb (I, K, 3), weights (K,), whites (I, 3))`` in float64.
+
+    Arguments:
+        world: the world.
+        specular: optional specular training recipe.
+        steps: specular copies per surface.
+        fluorescent: optional fraction of fluorescent occurrences.
     """
     sensors = np.asarray(world.camera.sensors, np.float64)
     lights = np.asarray(world.train_illuminants, np.float64)
@@ -110,6 +116,9 @@ def hull_matrix(world: World) -> np.ndarray:
 
     Returns:
         ``(2500, I)`` float32 of 0 and 1.
+
+    Arguments:
+        world: the world (reflectances, training illuminants, camera).
     """
     rgb, _, _ = training_responses(world)
     i, j = np.divmod(np.arange(RG_BINS * RG_BINS), RG_BINS)
@@ -151,6 +160,16 @@ def brightness_matrix(
     Returns:
         ``(log_probability (1275 * l_total + 1, I) float32, l_total)``; the last row is the
         outside cell, at each illuminant's floor.
+
+    Arguments:
+        world: the world.
+        l_bins: L bins per unit of ``L / L_white``.
+        sigma: Gaussian smoothing in (r,g) bins.
+        sigma_l: Gaussian smoothing in L bins.
+        floor: probability floor.
+        specular: specular training (see :func:`training_responses`).
+        specular_steps: specular copies per surface.
+        fluorescent: FL training's fraction of fluorescent occurrences.
     """
     rgb, weights, whites = training_responses(world, specular, specular_steps, fluorescent)
     n_lights = rgb.shape[0]

@@ -27,7 +27,14 @@ RGB estimate is positive and the diagonal map to canonical exists."""
 
 def histogram_bins(rgb: Float[Array, "P 3"]) -> Int[Array, " P"]:
     """Flat (r,g) bin index ``floor(r * 50) * 50 + floor(g * 50)`` of each pixel (bins clamped to
-    0..49; black pixels land in the achromatic bin and are masked by the callers)."""
+    0..49; black pixels land in the achromatic bin and are masked by the callers).
+
+    Arguments:
+        rgb: ``(P, 3)`` pixels or surfaces.
+
+    Returns:
+        ``(P,)`` int32 bin indices in ``0 .. 2499``.
+    """
     cells = rg_bin(rg(rgb), BINS)
     return cells[..., 0] * BINS + cells[..., 1]
 
@@ -55,6 +62,10 @@ def occupied_bins(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[ja
     Returns:
         ``bins (P,)`` int32 (sorted; unused slots hold a valid index with weight 0) and
         ``weight (P,)`` (1 for the first slot of each occupied bin, else 0).
+
+    Arguments:
+        rgb: ``(P, 3)`` surfaces.
+        mask: ``(P,)`` True where a surface is valid.
     """
     valid = mask & (jnp.sum(rgb, axis=-1) > TINY)
     bins = jnp.sort(jnp.where(valid, histogram_bins(rgb), N_INPUTS))

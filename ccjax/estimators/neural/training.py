@@ -65,7 +65,14 @@ RECIPES: dict[str, Recipe] = {
 
 
 def training_world(world: World) -> World:
-    """``world`` with its training illuminants in the slot the scene sampler draws from."""
+    """``world`` with its training illuminants in the slot the scene sampler draws from.
+
+    Arguments:
+        world: the world.
+
+    Returns:
+        The world used for training scenes.
+    """
     return eqx.tree_at(lambda w: w.test_illuminants, world, world.train_illuminants)
 
 
@@ -82,6 +89,9 @@ def training_batch(
         tables: :class:`SceneTables` of :func:`training_world` (training illuminants).
         recipe: the training scene recipe.
         batch_size: number of scenes.
+
+    Returns:
+        ``((bins (B, P), weights (B, P)), targets (B, 2))``.
     """
     key_scenes, key_count, key_noise = jax.random.split(key, 3)
     scenes = sample_batch(scene_keys(key_scenes, 0, batch_size), tables, recipe.max_surfaces, recipe.specular)
@@ -98,7 +108,16 @@ def training_batch(
 
 
 def training_loss(net: Mlp, histograms, targets) -> jax.Array:
-    """Mean squared (r,g) error of ``net`` on a :func:`training_batch`."""
+    """Mean squared (r,g) error of ``net`` on a :func:`training_batch`.
+
+    Arguments:
+        net: the net.
+        histograms: the sparse histograms of :func:`training_batch`.
+        targets: ``(B, 2)`` target (r,g).
+
+    Returns:
+        The scalar loss.
+    """
     predicted = jax.vmap(net.from_bins)(*histograms)
     return jnp.mean(jnp.sum((predicted - targets) ** 2, axis=-1))
 
@@ -135,7 +154,12 @@ def _train_chunk(net, opt_state, keys, steps, tables, recipe, batch_size, peak_r
 
 @dataclass
 class TrainingLog:
-    """Per-chunk mean training loss (mean squared (r,g) error) and wall time."""
+    """Per-chunk mean training loss (mean squared (r,g) error) and wall time.
+
+    Attributes:
+        losses: mean training loss per chunk of steps.
+        seconds: wall time of the training.
+    """
 
     losses: list[float]
     seconds: float

@@ -23,29 +23,73 @@ class MissingWeightsError(FileNotFoundError):
 
 def cache_key(world: World, recipe: Recipe) -> str:
     """:func:`ccjax._cache.content_key` of the world arrays training reads (reflectances, training
-    illuminants, camera sensors; not the test illuminants) and of the recipe."""
+    illuminants, camera sensors; not the test illuminants) and of the recipe.
+
+    Arguments:
+        world: the world.
+        recipe: the training recipe.
+
+    Returns:
+        The hex key.
+    """
     fields = {field.name: getattr(recipe, field.name) for field in dataclasses.fields(recipe)}
     return content_key("neural", world.reflectances, world.train_illuminants, world.camera.sensors, fields)
 
 
 def weights_path(world: World, label: str, recipe: Recipe | None = None) -> Path:
-    """Where the weights of net ``label`` (or of ``recipe``) for ``world`` are cached."""
+    """Where the weights of net ``label`` (or of ``recipe``) for ``world`` are cached.
+
+    Arguments:
+        world: the world.
+        label: the net's label.
+        recipe: the training recipe (default: the label's).
+
+    Returns:
+        The path (which may not exist yet).
+    """
     recipe = recipe or _recipe(label)
     return cache_directory() / "neural" / f"{label}-{cache_key(world, recipe)}.eqx"
 
 
 def has_weights(world: World, label: str) -> bool:
-    """True when trained weights of net ``label`` for ``world`` are cached."""
+    """True when trained weights of net ``label`` for ``world`` are cached.
+
+    Arguments:
+        world: the world.
+        label: the net's label.
+
+    Returns:
+        Whether the weights are cached.
+    """
     return weights_path(world, label).is_file()
 
 
 def is_net_label(label: str) -> bool:
-    """True for the labels whose estimator needs trained weights (NEURAL-NET, SP-NEURAL-NET)."""
+    """True for the labels whose estimator needs trained weights (NEURAL-NET, SP-NEURAL-NET).
+
+    Arguments:
+        label: an estimator label.
+
+    Returns:
+        Whether it is a net's label.
+    """
     return label in RECIPES
 
 
 def save(net: Mlp, world: World, label: str, recipe: Recipe, schedule: Schedule, log: TrainingLog) -> Path:
-    """Write the weights and a JSON record beside them (:func:`ccjax._cache.save_model`, atomic)."""
+    """Write the weights and a JSON record beside them (:func:`ccjax._cache.save_model`, atomic).
+
+    Arguments:
+        net: the trained net.
+        world: the world it was trained for.
+        label: the net's label.
+        recipe: the training recipe.
+        schedule: the optimisation schedule.
+        log: the training log (recorded in the JSON).
+
+    Returns:
+        The weights' path.
+    """
     record = {
         "label": label,
         "world": world.name,
@@ -58,7 +102,16 @@ def save(net: Mlp, world: World, label: str, recipe: Recipe, schedule: Schedule,
 
 
 def load(world: World, label: str, recipe: Recipe | None = None) -> Mlp:
-    """Load the cached net ``label`` for ``world``; :class:`MissingWeightsError` if there is none."""
+    """Load the cached net ``label`` for ``world``; :class:`MissingWeightsError` if there is none.
+
+    Arguments:
+        world: the world.
+        label: the net's label.
+        recipe: the training recipe (default: the label's).
+
+    Returns:
+        The trained :class:`Mlp`.
+    """
     recipe = recipe or _recipe(label)
     path = weights_path(world, label, recipe)
     if not path.is_file():
@@ -70,7 +123,15 @@ def load(world: World, label: str, recipe: Recipe | None = None) -> Mlp:
 
 
 def train_command(world: World, label: str) -> str:
-    """The command line that trains ``label`` for ``world`` (for error messages)."""
+    """The command line that trains ``label`` for ``world`` (for error messages).
+
+    Arguments:
+        world: the world.
+        label: the net's label.
+
+    Returns:
+        The shell command.
+    """
     specular = " --specular" if RECIPES.get(label, Recipe()).specular is not None else ""
     if world.name == "barnard1999":
         return f"ccjax train-net --world barnard1999{specular}"
@@ -86,6 +147,12 @@ def train_and_save(
 
     Returns:
         The weights' path and the :class:`TrainingLog`.
+
+    Arguments:
+        world: the world.
+        label: the net's label.
+        schedule: the optimisation schedule (default: ``Schedule()``).
+        progress: show a progress bar.
     """
     recipe = _recipe(label)
     schedule = schedule or Schedule()
