@@ -168,3 +168,21 @@ def test_dark_rule_survives_one_unclipped_highlight(default_world, protocol_sets
     print(f"{count} images, worst relative change: {worst}")
     assert worst["count"] < 0.01 and worst["DB-GW"] < 0.01 and worst["GW at ave5"] < 0.01, worst
     assert worst["old-rule count"] >= 0.01, worst  # the rule it replaces fails the same test
+
+
+def test_read_image_clips_at_the_protocol_level(tmp_path):
+    """Default: any channel at or above 0.98 of the file maximum is clipped (codes 64224 / 64225
+    straddle 0.98 * 65535 = 64224.3); an explicit saturation clips exactly at that value; the unit
+    scale (1.0 = the saturation level, the file maximum by default) does not change."""
+    codes = np.array([[[64224, 9, 9], [9, 64225, 9], [9, 9, 65535], [0, 500, 500]]], np.uint16)
+    io.write_png(tmp_path / "a.png", codes)
+    image = io.read_image(tmp_path / "a.png")
+    np.testing.assert_array_equal(image.clipped, [[False, True, True, False]])
+    np.testing.assert_array_equal(image.clipped, ~reference.protocol_mask(codes) & (codes.min(axis=-1) > 0))
+    np.testing.assert_allclose(image.rgb, codes / 65535.0, rtol=1e-6)
+    exact = io.read_image(tmp_path / "a.png", saturation=64225)
+    np.testing.assert_array_equal(exact.clipped, [[False, True, True, False]])
+    np.testing.assert_allclose(exact.rgb, codes / 64225.0, rtol=1e-6)
+    assert not io.read_image(tmp_path / "a.png", saturation=65536).clipped.any()
+    # The zero-channel pixel is not clipped, but it is not usable either.
+    assert not preprocessing.usable_pixels(image.rgb, image.clipped, 0.0)[0, 3]
