@@ -25,8 +25,12 @@ Stages, all with fixed shapes so the kernel jits and vmaps:
 Scenes with many observations are first reduced to the observations that can matter: those
 extreme in chromaticity for locating (only chromaticities decide feasibility), and for the fine
 stage those that are the support point of the observed set in the direction ``n_k * v`` of some
-facet ``k`` at sample directions across the box (every constraint is a support function).
-Selectors (``selectors.py``) are reductions over the fine grid.
+facet ``k`` at sample directions across the box (every constraint is a support function). Both
+reductions are streamed over chunks of observations with a running maximum, so memory does not
+grow with the number of observations (camera-sized images) and the result is the unchunked one.
+Observations are divided by the scene's scale first (constraints are scale-invariant, ``T``
+scales with the scene), so no threshold is absolute. Selectors (``selectors.py``) are
+reductions over the fine grid.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from ccjax.estimators.gamut.engine import OUTSIDE, GridOptions, cone_violation, directions, dot, locate, square_grid
 
@@ -42,6 +46,9 @@ from ccjax.estimators.gamut.engine import OUTSIDE, GridOptions, cone_violation, 
 # violation), top pairs give -1e20 sum(v) (never the largest constraint).
 OFF_ORIGIN = -1.0
 OFF_TOP = -1e20
+# Observations dimmer than this fraction of the scene's brightest do not constrain (relative, so
+# the scene's scale does not matter).
+RELATIVE_DARK = 1e-12
 
 
 class Observations(eqx.Module):
@@ -74,8 +81,11 @@ class Grid(eqx.Module):
         surface, illuminant, cone: ``(G,)`` ``V_S``, ``V_I``, ``V_C``.
         observations: the (reduced) observations, for refining MV between grid points.
         step: ``(2,)`` the fine grid's (r,g) step.
-        exact: the observation reduction kept every observation it selected.
+        exact: the fine stage ran on every observation, or the reduction of a large scene kept
+            every support point it selected.
         usable: the scene has at least one usable observation.
+        scale: the scene's scale the observations were divided by (``T`` and the selectors'
+            illuminants are in those units).
     """
 
     rg: Float[Array, "G 2"]
@@ -88,6 +98,7 @@ class Grid(eqx.Module):
     step: Float[Array, "2"]
     exact: Bool[Array, ""]
     usable: Bool[Array, ""]
+    scale: Float[Array, ""]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -122,82 +133,128 @@ def violations(model, v, valid, obs: Observations) -> tuple[Array, Array, Array,
 # observations
 
 
-def observations(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[Observations, Array, Array]:
-    """Constraint coefficients of a scene's observations; also ``q = p * w_C`` and usability."""
-    dtype = rgb.dtype
-    usable = mask & (jnp.sum(rgb, axis=-1) > 1e-12)
-    q = jnp.where(usable[:, None], rgb * model.white.astype(dtype), 0.0)
+def usable_observations(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[Array, Array]:
+    """The observations that constrain, and the scene's scale (the largest usable R+G+B).
+
+    An observation is usable when masked in, finite, and its R+G+B is positive and above
+    ``RELATIVE_DARK`` times the scene's largest: a threshold relative to the scene, so a scene
+    scaled by any factor keeps the same observations (every constraint is scale-invariant).
+    """
+    total = jnp.sum(rgb, axis=-1)
+    candidate = mask & jnp.isfinite(total) & jnp.all(jnp.isfinite(rgb), axis=-1) & (total > 0)
+    scale = jnp.max(jnp.where(candidate, total, 0.0))
+    return candidate & (total > RELATIVE_DARK * scale), scale
+
+
+def coefficients(model, q: Float[Array, "P 3"], usable: Bool[Array, " P"]) -> Observations:
+    """Constraint coefficients of observations ``q = p * w_C`` (masked ones never bind)."""
+    dtype = q.dtype
     origin = model.origin_normals.astype(dtype)
     origin = origin / jnp.linalg.norm(origin, axis=-1, keepdims=True)
     top = (model.top_normals / model.top_offsets[:, None]).astype(dtype)
     on = usable[:, None, None]
-    return (
-        Observations(
-            origin=jnp.where(on, q[:, None, :] * origin[None], OFF_ORIGIN),
-            scale=jnp.where(usable[:, None], q, 1.0),
-            top=jnp.where(on, q[:, None, :] * top[None], OFF_TOP),
-        ),
-        q,
-        usable,
+    return Observations(
+        origin=jnp.where(on, q[:, None, :] * origin[None], OFF_ORIGIN),
+        scale=jnp.where(usable[:, None], q, 1.0),
+        top=jnp.where(on, q[:, None, :] * top[None], OFF_TOP),
     )
 
 
-def _chromaticity_extremes(obs: Observations, q, usable, count: int) -> Observations:
+def observations(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[Observations, Array, Array]:
+    """Constraint coefficients of a scene's observations; also ``q = p * w_C`` and usability."""
+    usable, _ = usable_observations(rgb, mask)
+    q = jnp.where(usable[:, None], rgb * model.white.astype(rgb.dtype), 0.0)
+    return coefficients(model, q, usable), q, usable
+
+
+def _streamed_argmax(score, q, usable, width: int, chunk: int) -> Int[Array, " M"]:
+    """``argmax`` over observations of ``score(q, usable) -> (C, width)`` (``-inf`` where
+    unusable), computed over chunks of ``chunk`` observations with a running maximum, so memory
+    is O(chunk) whatever the number of observations; the first maximum wins, as in ``argmax``."""
+    count = q.shape[0]
+    chunk = min(chunk, count)
+    steps = -(-count // chunk)
+    pad = steps * chunk - count
+    qs = jnp.pad(q, ((0, pad), (0, 0))).reshape(steps, chunk, 3)
+    us = jnp.pad(usable, (0, pad)).reshape(steps, chunk)
+
+    def step(carry, xs):
+        best, index = carry
+        first, qc, uc = xs
+        values = score(qc, uc)
+        at = jnp.argmax(values, axis=0)
+        value = jnp.take_along_axis(values, at[None], axis=0)[0]
+        better = value > best
+        return (jnp.where(better, value, best), jnp.where(better, first + at, index)), None
+
+    start = (jnp.full((width,), -jnp.inf, q.dtype), jnp.zeros((width,), jnp.int32))
+    firsts = jnp.arange(steps, dtype=jnp.int32) * chunk
+    (_, index), _ = jax.lax.scan(step, start, (firsts, qs, us))
+    return index
+
+
+def _chromaticity_extremes(q, usable, count: int, chunk: int) -> Int[Array, " M"]:
     """The observations extreme in (r,g) chromaticity in ``count`` directions (with repeats).
 
     Feasibility depends on observations only through their chromaticities, so observations
     inside the chromaticity hull of the others never matter for it; a hull vertex missed by the
     directions only enlarges the located region, which the later stages tighten.
     """
-    chroma = q[:, :2] / jnp.maximum(jnp.sum(q, axis=-1, keepdims=True), 1e-30)
     angles = jnp.arange(count, dtype=q.dtype) * (2 * jnp.pi / count)
     axes = jnp.stack([jnp.cos(angles), jnp.sin(angles)], axis=1).astype(q.dtype)
-    return obs.take(jnp.argmax(jnp.where(usable[:, None], chroma @ axes.T, -jnp.inf), axis=0))
+
+    def score(qc, uc):
+        chroma = qc[:, :2] / jnp.maximum(jnp.sum(qc, axis=-1, keepdims=True), 1e-30)
+        return jnp.where(uc[:, None], chroma @ axes.T, -jnp.inf)
+
+    return _streamed_argmax(score, q, usable, count, chunk)
 
 
-def _support_observations(model, obs: Observations, q, usable, lo, hi, options: GridOptions):
+def _support_index(model, q, usable, lo, hi, options: GridOptions) -> tuple[Array, Array, Array]:
     """The observations that are a support point of the observed set, in a facet's direction
     ``n_k * v`` (origin facets: after normalising by ``|q * v|``), at sample directions over the
-    box; compacted to ``fine_observations`` (the flag says whether all fitted)."""
+    box (streamed over chunks); the first ``fine_observations`` of them in index order.
+
+    Returns:
+        ``(index, keep, exact)``: indices, which of them are support points, and whether all fitted.
+    """
     rg, _ = square_grid(lo, hi, options.reduction_samples)
     _, v, valid = directions(rg)
     v = jnp.where(valid[:, None], v, 3.0)
-    origin_scores = (
-        jnp.einsum("pkc,sc->skp", obs.origin, v) / jnp.linalg.norm(q[None] * v[:, None], axis=-1)[:, None, :]
-    )
-    top_scores = jnp.einsum("pkc,sc->skp", obs.top, v)
-    off = ~usable[None, None, :]
-    winners = jnp.concatenate(
-        [
-            jnp.argmax(jnp.where(off, -jnp.inf, origin_scores), axis=-1).ravel(),
-            jnp.argmax(jnp.where(off, -jnp.inf, top_scores), axis=-1).ravel(),
-        ]
-    )
-    chosen = jnp.zeros(q.shape[0], bool).at[winners].set(True) & usable
+    origin = model.origin_normals.astype(q.dtype)
+    origin = origin / jnp.linalg.norm(origin, axis=-1, keepdims=True)
+    top = (model.top_normals / model.top_offsets[:, None]).astype(q.dtype)
+
+    def score(qc, uc):
+        mapped = qc[:, None, :] * v[None]  # (C, S, 3)
+        origin_scores = jnp.einsum("psc,kc->psk", mapped, origin) / jnp.linalg.norm(mapped, axis=-1)[..., None]
+        top_scores = jnp.einsum("psc,kc->psk", mapped, top)
+        values = jnp.concatenate([origin_scores.reshape(qc.shape[0], -1), top_scores.reshape(qc.shape[0], -1)], 1)
+        return jnp.where(uc[:, None], values, -jnp.inf)
+
+    width = v.shape[0] * (origin.shape[0] + top.shape[0])
+    winners = jnp.sort(_streamed_argmax(score, q, usable, width, options.chunk))
+    first = jnp.concatenate([jnp.ones((1,), bool), winners[1:] != winners[:-1]]) & usable[winners]
     count = options.fine_observations if q.shape[0] <= options.large_scene else options.large_fine_observations
-    index = jnp.argsort(~chosen, stable=True)[:count]
-    keep = chosen[index]
-    kept = obs.take(index)
-    kept = Observations(
-        origin=jnp.where(keep[:, None, None], kept.origin, OFF_ORIGIN),
-        scale=jnp.where(keep[:, None], kept.scale, 1.0),
-        top=jnp.where(keep[:, None, None], kept.top, OFF_TOP),
-    )
-    return kept, jnp.sum(chosen) <= count
+    slot = jnp.where(first, jnp.cumsum(first) - 1, count)
+    index = jnp.zeros((count,), jnp.int32).at[slot].set(winners, mode="drop")
+    chosen = jnp.sum(first)
+    return index, jnp.arange(count) < chosen, chosen <= count
 
 
 # ---------------------------------------------------------------------------------------------
 # stages
 
 
-def locate_box(model, obs: Observations, q, usable, options: GridOptions) -> tuple[Array, Array]:
+def locate_box(model, obs: Observations | None, q, usable, options: GridOptions) -> tuple[Array, Array]:
     """Stage 1: the engine's locating stage on the region violation, from the model's domain;
-    scenes with many observations locate with the ones extreme in chromaticity."""
-    few = (
-        obs
-        if q.shape[0] <= options.locate_observations
-        else _chromaticity_extremes(obs, q, usable, options.locate_observations)
-    )
+    scenes with many observations locate with the ones extreme in chromaticity (``obs`` is only
+    read for scenes of at most ``locate_observations``)."""
+    if q.shape[0] <= options.locate_observations and obs is not None:
+        few = obs
+    else:
+        index = _chromaticity_extremes(q, usable, options.locate_observations, options.chunk)
+        few = coefficients(model, q[index], usable[index])
 
     def region(rg):
         _, v, valid = directions(rg)
@@ -209,6 +266,15 @@ def locate_box(model, obs: Observations, q, usable, options: GridOptions) -> tup
 def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     """Both stages for one scene: the fine grid every selector reads.
 
+    The observations are divided by the scene's scale first (every constraint is
+    scale-invariant and ``T`` scales with it; the selectors multiply it back), so a scene and the
+    same scene times ``1e-12`` give the same answer up to that factor. Scenes of at most
+    ``max(fine_observations, exact_scene)`` observations run the fine stage on all of them;
+    larger ones on the support-point reduction, streamed over chunks of ``options.chunk``
+    observations (memory independent of the number of observations; the answer is the
+    unchunked one). MV refines on at most ``fine_observations`` support points
+    (``Grid.observations``).
+
     Arguments:
         model: a fitted :class:`~ccjax.estimators.gamut.GamutModel`.
         rgb: ``(P, 3)`` observed camera RGBs; ``mask``: ``(P,)`` valid ones.
@@ -217,24 +283,37 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     rgb = jnp.asarray(rgb)
     if not jnp.issubdtype(rgb.dtype, jnp.floating):
         rgb = rgb.astype(jnp.float32)
-    obs, q, usable = observations(model, rgb, mask)
-    lo, hi = locate_box(model, obs, q, usable, options)
-    if q.shape[0] > options.fine_observations:
-        obs, exact = _support_observations(model, obs, q, usable, lo, hi, options)
+    usable, scale = usable_observations(rgb, mask)
+    scale = jnp.where(scale > 0, scale, 1.0)
+    q = jnp.where(usable[:, None], (rgb / scale) * model.white.astype(rgb.dtype), 0.0)
+    count = q.shape[0]
+    exact_all = count <= max(options.fine_observations, options.exact_scene)
+    small = exact_all or count <= options.locate_observations
+    everything = coefficients(model, q, usable) if small else None
+    lo, hi = locate_box(model, everything, q, usable, options)
+    if count > options.fine_observations:
+        index, keep, exact = _support_index(model, q, usable, lo, hi, options)
+        reduced = coefficients(model, q[index], usable[index] & keep)
     else:
-        exact = jnp.asarray(True)
+        exact, reduced = jnp.asarray(True), everything
+    fine = everything if exact_all else reduced
+    assert fine is not None and reduced is not None
+    exact = exact | exact_all
     rg, step = square_grid(lo, hi, options.fine_points)
     _, v, valid = directions(rg)
-    _, surface, illuminant, cone = violations(model, v, valid, obs)
+    inverse, surface = inverse_extent(v, fine), surface_violation(v, fine)
+    illuminant = cone_violation(1.0 / v, model.illuminant_planes.astype(v.dtype))
+    cone = cone_violation(v * model.white.astype(v.dtype), model.map_planes.astype(v.dtype))
     return Grid(
         rg=rg,
         valid=valid,
-        inverse_extent=inverse_extent(v, obs),
+        inverse_extent=inverse,
         surface=surface,
         illuminant=illuminant,
         cone=cone,
-        observations=obs,
+        observations=reduced,
         step=step,
         exact=exact,
         usable=jnp.any(usable),
+        scale=scale,
     )

@@ -59,6 +59,10 @@ class GridOptions:
         large_scene, large_fine_observations: the budget for scenes of more than ``large_scene``
             observations (at most about 43 at 1024 surfaces with the ND gamut).
         reduction_samples: per-axis sample directions used to pick those observations.
+        exact_scene: scenes of at most this many observations run the fine stage on all of them
+            (the unreduced engine, exact at every relaxation level; 0: only those of at most
+            ``fine_observations``).
+        chunk: observations per step of the streamed reductions (memory is O(chunk)).
         first_level, levels: relaxation levels ``first_level * 2^i``, ``i < levels``.
     """
 
@@ -73,6 +77,8 @@ class GridOptions:
     large_scene: int = 128
     large_fine_observations: int = 48
     reduction_samples: int = 5
+    exact_scene: int = 0
+    chunk: int = 2048
     first_level: float = relaxation.FIRST_LEVEL
     levels: int = relaxation.LEVELS
 

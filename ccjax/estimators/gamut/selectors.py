@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 
 import jax.numpy as jnp
+from jaxtyping import Array
 
 from ccjax.estimators.base import TINY, Estimate
 from ccjax.estimators.gamut import average, mv, scwia
@@ -79,15 +80,23 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
     else:
         raise ValueError(f"selector: expected one of {SELECTORS}, got {selector!r}")
 
-    return finish(illuminant, grid.usable, ~failed & jnp.any(feasible), level, model.fallback.astype(grid.rg.dtype))
+    return finish(
+        illuminant, grid.usable, ~failed & jnp.any(feasible), level, model.fallback.astype(grid.rg.dtype), grid.scale
+    )
 
 
-def finish(illuminant, usable, found, level, fallback) -> Estimate:
+def finish(illuminant, usable, found, level, fallback, scale: Array | float = 1.0) -> Estimate:
     """The :class:`Estimate` of a selector's answer: ``fallback`` unless the scene had usable
-    observations, a level with feasible directions and a finite, positive answer."""
+    observations, a level with feasible directions and a finite, positive answer.
+
+    Arguments:
+        illuminant: the selector's answer in the units of observations divided by ``scale``
+            (so the positivity test is relative to the scene, not an absolute threshold).
+        scale: the scene's scale (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`).
+    """
     found = found & usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > TINY)
     return Estimate(
-        illuminant=jnp.where(found, jnp.nan_to_num(illuminant), fallback),
+        illuminant=jnp.where(found, jnp.nan_to_num(illuminant) * scale, fallback),
         status=status_of(usable, found, level),
         relaxation=jnp.where(found, level, 0.0).astype(fallback.dtype),
     )

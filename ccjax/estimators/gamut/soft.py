@@ -27,7 +27,7 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate
 from ccjax.estimators.gamut import average, mv, scwia
-from ccjax.estimators.gamut.constraints_3d import locate_box, observations
+from ccjax.estimators.gamut.constraints_3d import locate_box, observations, usable_observations
 from ccjax.estimators.gamut.engine import OUTSIDE, cone_violation, directions, dot, square_grid
 from ccjax.estimators.gamut.model import GamutModel
 from ccjax.estimators.gamut.relaxation import relaxation_level
@@ -73,6 +73,10 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         model, options = self.model, self.model.options
         rgb = jnp.asarray(rgb)
+        # Scale-free: the estimate is homogeneous in the scene, so work on it divided by its scale.
+        _, scale = usable_observations(rgb, mask)
+        scale = jnp.where(scale > 0, scale, 1.0)
+        rgb = rgb / scale
         obs, q, usable = observations(model, rgb, mask)
         lo, hi = jax.lax.stop_gradient(locate_box(model, obs, q, usable, options))
         rg, _ = square_grid(lo - self.margin, hi + self.margin, options.fine_points)
@@ -109,4 +113,4 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
             estimate = average.estimate(u, v, log_t, white, log_mask)
         else:
             estimate = scwia.estimate(u, log_t, inverse, white, self.power, log_mask)
-        return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype))
+        return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype), scale)
