@@ -11,27 +11,33 @@ from ccjax import cli, io
 from ccjax.experiments import cameras, evaluation
 from ccjax.world import World
 
-SAME_CAMERA = ("Nikon D5100", "Nikon D5300", "Canon EOS 5D Mark II", "Sony ILCE-7M3", "Nikon D850")
+SAME_CAMERA = ("Nikon D5100", "Nikon D5300", "Canon EOS 5D Mark II", "Sony ILCE-7M3")
 
 
 @pytest.fixture(scope="module")
 def worlds():
-    """The default world of each camera (the check's reference) and of seed 7, whose test lights
-    (other random mixtures than seed 0's) give independent ground truth."""
-    return {name: (World.default(name), World.default(name, seed=7)) for name in SAME_CAMERA}
+    """The default world of each camera: the check's reference."""
+    return {name: World.default(name) for name in SAME_CAMERA}
 
 
-def _truth(world: World, rng, count: int | None = None) -> np.ndarray:
-    """Ground truth as a data set gives it: the camera's white under each light (``count`` lights
-    drawn at random, default all), any scale."""
-    whites = np.asarray(world.test_whites, np.float64)
+@pytest.fixture(scope="module")
+def lights():
+    """Independent lights for the ground truth: the test set of another seed's world (other
+    random mixtures than seed 0's, among the daylight, blackbody and lamp sources)."""
+    return np.asarray(World.default("Nikon D5100", seed=7).test_illuminants, np.float64)
+
+
+def _truth(world: World, lights, rng, count: int | None = None) -> np.ndarray:
+    """Ground truth as a data set gives it: the white of ``world``'s camera under each light
+    (``count`` lights drawn at random, default all), any scale."""
     if count is not None:
-        whites = whites[rng.choice(len(whites), count, replace=False)]
+        lights = lights[rng.choice(len(lights), count, replace=False)]
+    whites = lights @ np.asarray(world.camera.sensors, np.float64)
     return whites * rng.uniform(0.2, 5.0, (len(whites), 1))
 
 
 def test_check_is_the_median_distance_to_the_nearest_white(worlds):
-    world = worlds["Nikon D5100"][0]
+    world = worlds["Nikon D5100"]
     whites = np.concatenate([np.asarray(world.train_whites), np.asarray(world.test_whites)]).astype(np.float64)
     assert cameras.curve_check(whites[:40] * 3.0, world).distance == pytest.approx(0.0, abs=1e-7)
     # Oracle: brute force over the whites in (r,g).
@@ -47,18 +53,18 @@ def test_check_is_the_median_distance_to_the_nearest_white(worlds):
         cameras.curve_check(np.ones(3), world)
 
 
-def test_d5100_truth_is_flagged_against_the_d5300_and_matching_cameras_pass(worlds):
+def test_d5100_truth_is_flagged_against_the_d5300_and_matching_cameras_pass(worlds, lights):
     """Acceptance (issue 12): synthetic truths of the Nikon D5100 checked against the D5300's
     curves are flagged (and the reverse); every camera checked against its own curves passes."""
     rng = np.random.default_rng(1)
-    d5100 = _truth(worlds["Nikon D5100"][1], rng)
-    d5300 = _truth(worlds["Nikon D5300"][1], rng)
-    wrong = cameras.curve_check(d5100, worlds["Nikon D5300"][0])
+    d5100 = _truth(worlds["Nikon D5100"], lights, rng)
+    d5300 = _truth(worlds["Nikon D5300"], lights, rng)
+    wrong = cameras.curve_check(d5100, worlds["Nikon D5300"])
     assert not wrong.passed and wrong.distance > 2 * cameras.CURVE_THRESHOLD, wrong.message()
     assert "probably not taken" in wrong.message() and f"{wrong.distance:.4f}" in wrong.message()
-    assert not cameras.curve_check(d5300, worlds["Nikon D5100"][0]).passed
-    for name, (reference, independent) in worlds.items():
-        check = cameras.curve_check(_truth(independent, rng), reference)
+    assert not cameras.curve_check(d5300, worlds["Nikon D5100"]).passed
+    for name, world in worlds.items():
+        check = cameras.curve_check(_truth(world, lights, rng), world)
         assert check.passed and check.distance < 0.75 * cameras.CURVE_THRESHOLD, (name, check.distance)
 
 
@@ -68,9 +74,9 @@ def cache(tmp_path, monkeypatch):
     return tmp_path / "cache"
 
 
-def test_cameras_check_command(tmp_path, cache, worlds, capsys):
+def test_cameras_check_command(tmp_path, cache, worlds, lights, capsys):
     rng = np.random.default_rng(2)
-    truth = _truth(worlds["Nikon D5100"][1], rng, 80)
+    truth = _truth(worlds["Nikon D5100"], lights, rng, 80)
     io.write_ground_truth(tmp_path / "gt.csv", [f"i{k}.png" for k in range(len(truth))], truth)
     argv = ["cameras", "--check", str(tmp_path / "gt.csv"), "--camera"]
     assert cli.main([*argv, "Nikon D5300", "--plot", str(tmp_path / "check.png")]) == 1
@@ -148,11 +154,11 @@ def test_world_based_agrees_with_the_models_default_input():
         assert evaluation.world_based(label) == (model.default_preprocessing != "pixels"), label
 
 
-def test_evaluate_warns_when_the_truth_is_another_cameras(tmp_path, cache, worlds, capsys):
+def test_evaluate_warns_when_the_truth_is_another_cameras(tmp_path, cache, worlds, lights, capsys):
     """Images rendered with the D5100's curves (a grey card under each light), evaluated with the
     D5300 named as the camera: evaluate warns with the distance; with the D5100 it does not."""
     rng = np.random.default_rng(3)
-    truth = _truth(worlds["Nikon D5100"][1], rng, 80)
+    truth = _truth(worlds["Nikon D5100"], lights, rng, 80)
     grey = truth / truth.max(axis=1, keepdims=True) * 0.5
     images = np.broadcast_to(grey[:, None, None, :], (len(grey), 6, 6, 3))
     gt = io.write_dataset(tmp_path / "set", images, truth)
