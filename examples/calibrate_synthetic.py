@@ -2,17 +2,23 @@
 
 Generates the thesis' experiment for a known camera, writes it as a calibration file, reads it
 back, fits sensors and the linearisation F jointly, and compares with the truth and with the
-pseudo-inverse. Run: python examples/calibrate_synthetic.py [CAMERA]
+pseudo-inverse. Run: python examples/calibrate_synthetic.py [CAMERA] [--quick]
+
+The run is one calibration experiment (a few hundred measurements, one joint fit); ``--quick`` runs
+it unchanged (it is already a smoke test's size) and exists so every example takes the flag.
 """
 
-import sys
+import argparse
 import tempfile
 
 import numpy as np
 
 from ccjax import calibration as cal
 
-camera = sys.argv[1] if len(sys.argv) > 1 else "Canon EOS 5D Mark II"
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("camera", nargs="?", default="Canon EOS 5D Mark II")
+parser.add_argument("--quick", action="store_true", help="the same run (already small)")
+camera = parser.parse_args().camera
 truth = cal.synthetic_calibration(camera, seed=0)
 print(f"{camera}: {truth.n_usable} usable measurements ({truth.light_source}), noise {100 * truth.noise_level:.2f} %")
 if truth.light_note:

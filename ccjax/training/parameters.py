@@ -8,7 +8,7 @@ import jax
 
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.estimators.correlation import ColourByCorrelation, ColourByCorrelation3D
-from ccjax.estimators.neural import NeuralNet
+from ccjax.estimators.neural import LogChromaNet, NeuralNet
 from ccjax.estimators.spatial import GreyEdge
 
 # What each family learns: the Colour by Correlation matrix (Barnard 1999 §4.5.4, ch. 10; starts
@@ -20,6 +20,7 @@ _LEARNABLE = {
     ColourByCorrelation3D: lambda m: m.log_probability,
     GreyEdge: lambda m: m.p,
     NeuralNet: lambda m: m.net,
+    LogChromaNet: lambda m: m.net,
 }
 
 

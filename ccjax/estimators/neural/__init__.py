@@ -32,12 +32,15 @@ training illuminants, camera sensors) and of the :class:`Recipe`. The optimisati
 :class:`MissingWeightsError` saying how to train them (nothing is trained silently).
 
 Modules: :mod:`.model` (input encoding, :class:`Mlp`, :class:`NeuralNet`), :mod:`.training`
-(:class:`Recipe`, :class:`Schedule`, :func:`train`), :mod:`.weights` (the weight files).
+(:class:`Recipe`, :class:`Schedule`, :func:`train`), :mod:`.weights` (the weight files),
+:mod:`.log_chroma` (a baseline beyond the thesis: an MLP on the log-chroma histogram, trained on
+photographs by ``ccjax train --method log-chroma-mlp``).
 """
 
 from __future__ import annotations
 
 from ccjax._cache import cache_directory as cache_dir
+from ccjax.estimators.neural.log_chroma import LogChromaNet, init_log_chroma_net, log_chroma_histogram
 from ccjax.estimators.neural.model import (
     BINS,
     N_INPUTS,
@@ -110,11 +113,24 @@ def _build_sp_neural_net(world, match, **options):
     return fit_neural(world, "SP-NEURAL-NET", **options)
 
 
+@register(
+    r"log-chroma-mlp",
+    example="log-chroma-mlp",
+    description="MLP on the log-chroma histogram (beyond the thesis; untrained until ccjax train)",
+    input_kind="surfaces",
+)
+def _build_log_chroma(world, match, *, seed: int = 0, **options):
+    import jax
+
+    return init_log_chroma_net(jax.random.key(seed), average_illuminant(world), **options)
+
+
 __all__ = [
     "BINS",
     "N_INPUTS",
     "RECIPES",
     "SIMPLEX_MARGIN",
+    "LogChromaNet",
     "MissingWeightsError",
     "Mlp",
     "NeuralNet",
@@ -127,8 +143,10 @@ __all__ = [
     "fit_neural",
     "has_weights",
     "histogram_bins",
+    "init_log_chroma_net",
     "is_net_label",
     "load",
+    "log_chroma_histogram",
     "occupied_bins",
     "save",
     "train",

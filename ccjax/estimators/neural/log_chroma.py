@@ -1,0 +1,79 @@
+"""A small learned baseline beyond the thesis: an MLP on the log-chroma histogram of the scene
+(the input of the field's histogram methods, e.g. Barron's convolutional colour constancy), trained
+on photographs with ``ccjax train --method log-chroma-mlp`` (nothing is fitted from spectra: the
+world gives only the fallback light).
+
+Each valid surface ``(R, G, B)`` has log-chroma ``u = log(G / R)``, ``v = log(G / B)``; the
+histogram counts them on a ``bins x bins`` grid over ``[-extent, extent]^2`` (normalised, square
+root), the MLP maps it to the light's log-chroma ``(u_L, v_L)`` and the estimate is
+``(exp(-u_L), 1, exp(-v_L))``. The histogram is hard, so the model is differentiable in its
+parameters (what training needs) but not in its input.
+"""
+
+from __future__ import annotations
+
+import typing
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, PRNGKeyArray
+
+from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, with_fallback
+
+LOG_CHROMA_BINS = 32
+LOG_CHROMA_EXTENT = 2.0
+"""log-chroma range covered by the histogram, ``[-2, 2]`` (a factor e^2 ~ 7.4 between channels)."""
+
+
+def log_chroma(rgb: Float[Array, "P 3"]) -> Float[Array, "P 2"]:
+    """``(log(G / R), log(G / B))`` of each surface (channels clamped at :data:`TINY`)."""
+    safe = jnp.maximum(rgb, TINY)
+    return jnp.stack([jnp.log(safe[:, 1] / safe[:, 0]), jnp.log(safe[:, 1] / safe[:, 2])], axis=-1)
+
+
+def log_chroma_histogram(
+    rgb: Float[Array, "P 3"], mask: Bool[Array, " P"], bins: int = LOG_CHROMA_BINS, extent: float = LOG_CHROMA_EXTENT
+) -> Float[Array, " n"]:
+    """Square root of the normalised histogram of the valid surfaces' log-chroma, flattened
+    (``bins * bins``; values outside the range land in the edge bins)."""
+    valid = mask & jnp.all(rgb > TINY, axis=-1)
+    cells = jnp.clip(jnp.floor((log_chroma(rgb) + extent) / (2 * extent) * bins), 0, bins - 1).astype(jnp.int32)
+    weight = valid.astype(rgb.dtype)
+    counts = jnp.zeros(bins * bins, rgb.dtype).at[cells[:, 0] * bins + cells[:, 1]].add(weight)
+    return jnp.sqrt(counts / jnp.maximum(jnp.sum(weight), 1.0))
+
+
+@typing.final
+class LogChromaNet(AbstractSurfaceEstimator):
+    """MLP on the log-chroma histogram (module docstring).
+
+    Attributes:
+        net: ``bins^2 -> hidden -> hidden -> 2`` (ReLU).
+        fallback: ``(3,)`` estimate for a scene without valid surfaces (``ok=False``).
+        bins, extent: the histogram grid (static).
+    """
+
+    net: eqx.nn.MLP
+    fallback: Float[Array, "3"]
+    bins: int = eqx.field(static=True, default=LOG_CHROMA_BINS)
+    extent: float = eqx.field(static=True, default=LOG_CHROMA_EXTENT)
+
+    def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
+        histogram = log_chroma_histogram(rgb, mask, self.bins, self.extent)
+        u, v = self.net(histogram)
+        illuminant = jnp.stack([jnp.exp(-u), jnp.ones_like(u), jnp.exp(-v)])
+        usable = jnp.any(mask & jnp.all(rgb > TINY, axis=-1))
+        return with_fallback(illuminant / jnp.sum(illuminant), usable, self.fallback)
+
+
+def init_log_chroma_net(
+    key: PRNGKeyArray, fallback: Float[Array, "3"], *, hidden: int = 64, bins: int = LOG_CHROMA_BINS
+) -> LogChromaNet:
+    """An untrained :class:`LogChromaNet` (the start of training); its last layer is zeroed so the
+    untrained estimate is the grey light ``(1, 1, 1) / 3``."""
+    net = eqx.nn.MLP(bins * bins, 2, hidden, depth=2, activation=jax.nn.relu, key=key)
+    last = net.layers[-1]
+    zero_weight, zero_bias = jnp.zeros_like(last.weight), jnp.zeros(last.weight.shape[0], last.weight.dtype)
+    net = eqx.tree_at(lambda n: (n.layers[-1].weight, n.layers[-1].bias), net, (zero_weight, zero_bias))
+    return LogChromaNet(net=net, fallback=jnp.asarray(fallback), bins=bins)
