@@ -473,3 +473,40 @@ def test_models_are_final_surface_estimators_and_jit_arguments(default_world, mo
     assert bool(
         jax.jit(gamut.GamutMapping.reduction_exact)(gamut.GamutMapping(models[("CRULE", None)], "MV"), rgb, mask)
     )
+
+
+def test_scenes_scaled_by_1e_minus_12_and_1e6_give_the_same_answer(default_world, models, run_all):
+    """No absolute threshold: the constraints are scale-invariant and T scales with the scene, so
+    a scene times s has the estimate times s and the same status (also for a relaxed scene)."""
+    rgb, mask = _scene(default_world, 6)
+    primaries = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]] * 2, np.float32) * 0.5
+    scales = (1.0, 1e-12, 1e6)
+    batch = np.stack([rgb * s for s in scales] + [primaries * s for s in scales]).astype(np.float32)
+    masks = np.stack([mask] * 3 + [np.ones(8, bool)] * 3)
+    for key in (("ECRULE", None), ("CRULE", None)):
+        out = run_all(models[key], batch, masks)
+        for name, estimate in out.items():
+            e = np.asarray(estimate.illuminant, np.float64)
+            status = np.asarray(estimate.status)
+            assert status[0] == Status.ESTIMATED and status[3] == Status.RELAXED, name
+            for base in (0, 3):
+                for k, s in enumerate(scales[1:], start=1):
+                    assert status[base + k] == status[base], (name, s)
+                    np.testing.assert_allclose(e[base + k], s * e[base], rtol=1e-5, err_msg=f"{name} x{s}")
+
+
+def test_streamed_reduction_equals_one_chunk(default_world):
+    """The observation reductions of large scenes run over chunks with a running maximum; any
+    chunk size gives the unchunked answer (here 96 observations in chunks of 16 versus one)."""
+    small = dict(locate_points=8, locate_iterations=2, fine_points=15, refine_steps=4, reduction_samples=3)
+    scenes = sample(jax.random.key(44), default_world, 3, 96)
+    outs = []
+    for chunk in (16, 4096):
+        model = gamut.fit(default_world, constraint="ECRULE", options=engine.GridOptions(chunk=chunk, **small))
+        run = eqx.filter_jit(lambda m, r, k: jax.vmap(lambda a, b: gamut.estimate_all(m, a, b, powers=(12,)))(r, k))
+        outs.append(run(model, scenes.rgb, scenes.mask))
+    for name in outs[0]:
+        np.testing.assert_array_equal(np.asarray(outs[0][name].status), np.asarray(outs[1][name].status))
+        np.testing.assert_allclose(
+            np.asarray(outs[0][name].illuminant), np.asarray(outs[1][name].illuminant), rtol=1e-6, err_msg=name
+        )
