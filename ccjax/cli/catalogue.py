@@ -44,7 +44,7 @@ def add_cameras(sub) -> None:
         "cameras",
         help="list the cameras ccjax can build; check ground truth against a camera's curves",
         description="List every camera ccjax can build and where its curves come from. With --check GT.csv: "
-        "compare the ground-truth lights with the camera's whites under the default world's training lights "
+        "compare the ground-truth lights with the camera's whites under the default world's training and test lights "
         "(median over images of the (r,g) distance to the nearest white) and say whether the images can have "
         "been taken with that camera's curves (exit status 1 when not).",
     )

@@ -469,7 +469,7 @@ def add_evaluate(sub) -> None:
         "evaluate",
         help="evaluate methods on a folder of images with ground truth",
         description="Run each method on every image listed in the ground truth and print the angular error "
-        "statistics (mean, median, trimean, best 25%%, worst 25%%, 95th percentile, max, bootstrap 95%% "
+        "statistics (mean, median, trimean, best 25%, worst 25%, 95th percentile, max, bootstrap 95% "
         "confidence intervals of mean and median), each method's input, seconds (compilation apart) and the "
         "images where it fell back or relaxed, with the reasons. Ground truth: CSV with header image,r,g,b (file "
         "name in DIR; r,g,b = camera RGB of the light, any scale). World-based methods need --camera; the ground "
