@@ -1,13 +1,20 @@
-"""Benchmark: 3-D gamut mapping (ECRULE-SCWIA-12 and CRULE-AVE) against the per-scene SciPy oracle.
+"""Benchmark: 3-D gamut mapping (CRULE-AVE, ECRULE-MV, ECRULE-SCWIA-12) against the per-scene SciPy oracle.
 
-Prints, on World.barnard1999 with compiled (warm) functions on this machine:
-* throughput in scenes/s at 8, 64 and 1024 surfaces (wall clock, and per CPU-second of this
-  process so that other load on the machine shows);
+Prints, on World.barnard1999 with compiled (warm) functions, in one run:
+* the device, jax version, cores and the load average (before each size: other load on the
+  machine shows in the wall figures; the CPU figures divide by this process's CPU seconds);
+* throughput in scenes/s at 8, 64, 256 and 1024 surfaces: wall clock, and per CPU-second of
+  this process times the core count, with the CPU cost per observed point (us per scene per
+  surface) so the scaling with the scene size is visible;
 * the exact SciPy oracle of tests/gamut_oracle.py (Qhull halfspace intersection and exact
-  centroid, i.e. CRULE-AVE) on scenes from the same batches, and the ratio;
-* peak resident memory after a chunked sweep of many scenes (memory is bounded by the chunk).
+  centroid, i.e. CRULE-AVE) on the first ``--oracle-scenes`` scenes of the same batches (one
+  core), and the ratios ccjax CRULE-AVE / oracle, wall and CPU-normalised;
+* a real-image-sized case: 64x64 Mondrian images (16 surfaces in 16x16 tiles) through the default
+  preprocessing (ave5 block averages, padded surface lists), scenes/s;
+* peak resident memory after a chunked ECRULE-SCWIA-12 sweep at 64 surfaces (bounded by the chunk).
 
-Usage: python benchmarks/gamut.py [--repeats 3] [--sweep-scenes 100000]
+Usage: python benchmarks/gamut.py [--repeats 3] [--surfaces 8,64,256,1024] [--oracle-scenes 100]
+       [--sweep-scenes 100000]
 """
 
 from __future__ import annotations
@@ -27,13 +34,14 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 
 import gamut_oracle as oracle
 
-from ccjax import experiments, scenes
+from ccjax import experiments, preprocessing, scenes
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch
+from ccjax.io.reading import LinearImage
 from ccjax.world import World
 
-BATCH = {8: 4096, 64: 1024, 1024: 128}
-ORACLE_SCENES = {8: 100, 64: 40, 1024: 5}
+LABELS = ("CRULE-AVE", "ECRULE-MV", "ECRULE-SCWIA-12")
+BATCH = {8: 4096, 64: 1024, 256: 256, 1024: 128}
 
 
 @eqx.filter_jit
@@ -56,31 +64,64 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    loaded = " (LOADED: other processes share the cores; wall figures are pessimistic)" if one > 1.5 else ""
+    return f"load average {one:.1f} / {five:.1f}{loaded}"
+
+
+def _oracle(A, b, white, rgb, mask, count):
+    """The exact CRULE-AVE answers of the first ``count`` scenes: (wall s, CPU s)."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    for k in range(count):
+        Ad, bd = oracle.scene_constraints(A, b, rgb[k][mask[k]])
+        poly = oracle.polytope(Ad, bd)
+        if poly is not None:
+            white / poly.centroid
+    return time.perf_counter() - wall, time.process_time() - cpu
+
+
+def _mondrian_images(world, count, key):
+    """``count`` 64x64 linear images of 16 surfaces in 16x16 tiles, as surface lists through the
+    default preprocessing (ave5 block averages, padded)."""
+    batch = scenes.sample(key, world, count, 16)
+    rgb = np.asarray(batch.rgb, np.float32).reshape(count, 4, 4, 3)
+    rgb = rgb / rgb.max(axis=(1, 2, 3), keepdims=True) * 0.9
+    images = np.repeat(np.repeat(rgb, 16, axis=1), 16, axis=2)
+    lists = [
+        preprocessing.surfaces(LinearImage(rgb=image, clipped=np.zeros(image.shape[:2], bool))) for image in images
+    ]
+    return np.stack([r for r, _ in lists]), np.stack([m for _, m in lists])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--surfaces", default="8,64,1024")
+    parser.add_argument("--surfaces", default="8,64,256,1024")
+    parser.add_argument("--labels", default=",".join(LABELS))
+    parser.add_argument("--oracle-scenes", type=int, default=100)
+    parser.add_argument("--images", type=int, default=256, help="64x64 images of the image case (0: skip)")
     parser.add_argument("--sweep-scenes", type=int, default=100_000, help="scenes of the memory sweep (0: skip)")
     args = parser.parse_args()
     surfaces = [int(n) for n in args.surfaces.split(",")]
+    labels = args.labels.split(",")
+    cores = os.cpu_count() or 1
 
-    print(
-        f"jax {jax.__version__}, backend {jax.default_backend()}, "
-        f"cpus {os.cpu_count()}, load average {os.getloadavg()[0]:.1f}"
-    )
+    print(f"jax {jax.__version__}, device {jax.devices()[0].device_kind} ({jax.default_backend()}), cpus {cores}")
+    print(_load())
     world = World.barnard1999()
-    labels = ("ECRULE-SCWIA-12", "CRULE-AVE")
     start = time.perf_counter()
     models = {label: registry.fit(label, world) for label in labels}
-    print(f"world: {world.name} {world.sizes()}; fit both models in {time.perf_counter() - start:.2f} s")
+    print(f"world: {world.name} {world.sizes()}; fit {len(models)} models in {time.perf_counter() - start:.2f} s")
 
     A, b = oracle.hull_halfspaces(np.asarray(world.canonical_rgb, np.float64))
     white = np.asarray(world.canonical_white, np.float64)
     print(
-        f"throughput, median of {args.repeats} warm runs (cpu "
-        f"= scenes per CPU-second of this process x {os.cpu_count()} cores):"
+        f"throughput, median of {args.repeats} warm runs (cpu = scenes per CPU-second of this process x {cores}"
+        " cores; per point = CPU us per scene per surface):"
     )
     for n in surfaces:
+        print(f"-- {n} surfaces, {_load()}")
         batch = scenes.sample(jax.random.key(n), world, BATCH[n], n)
         rates = {}
         for label, model in models.items():
@@ -88,44 +129,48 @@ def main() -> None:
             jax.block_until_ready(_estimate(model, batch.rgb, batch.mask))
             first = time.perf_counter() - start
             wall, cpu = _timed(lambda model=model, batch=batch: _estimate(model, batch.rgb, batch.mask), args.repeats)
-            rates[label] = BATCH[n] / wall
+            rates[label] = (BATCH[n] / wall, BATCH[n] / cpu)
             print(
                 f"  {label:<16}{n:>6} surfaces: {BATCH[n] / wall:>8.0f} scenes/s wall, "
-                f"{BATCH[n] / cpu * os.cpu_count():>8.0f} scenes/s cpu (batch {BATCH[n]} "
-                f"in vmapped blocks of {type(model).block_size}, first call {first:.1f} s)"
+                f"{BATCH[n] / cpu * cores:>8.0f} scenes/s cpu, {cpu / BATCH[n] / n * 1e6:>7.2f} us/point "
+                f"(batch {BATCH[n]}, first call {first:.1f} s)"
             )
-        # The exact oracle (CRULE-AVE: halfspace intersection + exact centroid) on the same scenes.
-        rgb, mask = np.asarray(batch.rgb, np.float64), np.asarray(batch.mask)
-        count = ORACLE_SCENES[n]
-        start = time.perf_counter()
-        for k in range(count):
-            Ad, bd = oracle.scene_constraints(A, b, rgb[k][mask[k]])
-            poly = oracle.polytope(Ad, bd)
-            if poly is not None:
-                white / poly.centroid
-        rate = count / (time.perf_counter() - start)
-        print(
-            f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {rate:>8.1f} scenes/s "
-            f"(one core) -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'] / rate:.0f}x"
+        count = args.oracle_scenes
+        wall, cpu = _oracle(A, b, white, np.asarray(batch.rgb, np.float64), np.asarray(batch.mask), count)
+        line = (
+            f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {count / wall:>8.1f} scenes/s wall, "
+            f"{count / cpu:>8.1f} per CPU-second (one core, {count} scenes), {cpu / count / n * 1e6:.0f} us/point"
         )
+        if "CRULE-AVE" in rates:
+            line += (
+                f" -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'][0] * wall / count:.1f}x wall, "
+                f"{rates['CRULE-AVE'][1] * cpu / count:.1f}x per CPU-second"
+            )
+        print(line)
+
+    if args.images:
+        print(f"-- 64x64 images through the default preprocessing ({args.images} images), {_load()}")
+        rgb, mask = _mondrian_images(world, args.images, jax.random.key(64))
+        print(f"  surface lists: {int(mask.sum(axis=1).mean())} blocks per image, padded to {rgb.shape[1]}")
+        for label, model in models.items():
+            jax.block_until_ready(_estimate(model, rgb, mask))
+            wall, cpu = _timed(lambda model=model: _estimate(model, rgb, mask), args.repeats)
+            print(
+                f"  {label:<16} 64x64 images: {args.images / wall:>8.0f} images/s wall, "
+                f"{args.images / cpu * cores:>8.0f} images/s cpu"
+            )
 
     if args.sweep_scenes:
+        label = "ECRULE-SCWIA-12"
+        model = models.get(label) or registry.fit(label, world)
         before = _peak_mb()
         start = time.perf_counter()
-        result = experiments.sweep(
-            world,
-            [("ECRULE-SCWIA-12", models["ECRULE-SCWIA-12"])],
-            [8],
-            args.sweep_scenes,
-            chunk_size=8192,
-            progress=False,
-        )
+        result = experiments.sweep(world, [(label, model)], [64], args.sweep_scenes, chunk_size=8192, progress=False)
         elapsed = time.perf_counter() - start
         print(
-            f"sweep of {args.sweep_scenes} scenes (8 surfaces, chunks of 8192): {elapsed:.1f} s, "
-            f"rg RMS {result.value('ECRULE-SCWIA-12', 8, 'rg'):.4f}, "
-            f"ok {result.ok_fraction('ECRULE-SCWIA-12', 8):.2%}; "
-            f"peak resident memory {before:.0f} MB before, {_peak_mb():.0f} MB after"
+            f"sweep of {args.sweep_scenes} scenes ({label}, 64 surfaces, chunks of 8192): {elapsed:.1f} s, "
+            f"rg RMS {result.value(label, 64, 'rg'):.4f}, ok {result.ok_fraction(label, 64):.2%}; "
+            f"peak resident memory {before:.0f} MB before, {_peak_mb():.0f} MB after; {_load()}"
         )
     print(f"peak resident memory: {_peak_mb():.0f} MB")
 
