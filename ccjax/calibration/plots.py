@@ -7,12 +7,23 @@ import numpy as np
 
 from ccjax.calibration.robustness import Robustness
 from ccjax.calibration.table import JOINT, JOINT_RANGE, PSEUDO_INVERSE, PSEUDO_INVERSE_POSITIVE, CalibrationTable
+from ccjax.io.writing import write_figure
 from ccjax.spectra import WAVELENGTHS
 
 
-def plot_sensors(table: CalibrationTable, path: str, *, truth: np.ndarray | None = None, title: str = "") -> None:
+def plot_sensors(table: CalibrationTable, path, *, truth: np.ndarray | None = None, title: str = "") -> None:
     """Fitted curves (Figs. 3.3–3.5): the proposed joint fit, the pseudo-inverse and the
-    pseudo-inverse with positivity, each against the truth when it is known."""
+    pseudo-inverse with positivity, each against the truth when it is known.
+
+    Arguments:
+        table: the fits of Table 3.1.
+        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        truth: ``(101, 3)`` true sensors, drawn dashed when known.
+        title: the figure title.
+
+    Returns:
+        None.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -38,12 +49,23 @@ def plot_sensors(table: CalibrationTable, path: str, *, truth: np.ndarray | None
     axes[0].legend(fontsize=8, ncol=2)
     fig.suptitle(title or "fitted sensor curves")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
-def plot_robustness(result: Robustness, path: str, *, title: str = "") -> None:
-    """Fig. 3.6: log of RMS relative error against log of the number of measurements fitted."""
+def plot_robustness(result: Robustness, path, *, title: str = "") -> None:
+    """Fig. 3.6: log of RMS relative error against log of the number of measurements fitted.
+
+    Arguments:
+        result: the robustness experiment.
+        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        title: the figure title.
+
+    Returns:
+        None.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -65,5 +87,7 @@ def plot_robustness(result: Robustness, path: str, *, title: str = "") -> None:
     ax.legend(fontsize=8)
     ax.set_title(title or f"robustness: {result.n_subsets} random subsets per size")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)

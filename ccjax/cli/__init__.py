@@ -127,24 +127,11 @@ def import_holding_interrupts(*names: str) -> None:
     Raises:
         KeyboardInterrupt: Ctrl-C came during the imports.
     """
-    import signal
-    import threading
+    from ccjax._signals import interrupts_held
 
-    if threading.current_thread() is not threading.main_thread() or (
-        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
-    ):
-        for name in names:  # handlers can only be set in the main thread; keep a caller's own
-            __import__(name)
-        return
-    received: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-    try:
+    with interrupts_held():
         for name in names:
             __import__(name)  # as the import statement does (``-X importtime`` reports it)
-    finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-    if received:
-        raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from ccjax.cli.common import int_list
+from ccjax.cli.common import check_distinct, check_output_file, check_plot, int_list, write, write_plot
 
 
 def add_calibrate(sub) -> None:
@@ -108,9 +108,27 @@ def joint_exp_rate(table):
     return linearisation.exp_rate
 
 
-def run_calibrate(args) -> int:
+def robustness_numbers(path: str) -> str:
+    """The JSON written beside the ``--robustness`` plot: its name with ``.json``."""
     import os
 
+    return os.path.splitext(path)[0] + ".json"
+
+
+def check_outputs(args) -> None:
+    """Refuse unwritable or clashing output files before any work (issue 17 item 7)."""
+    check_plot(args.plot)
+    check_plot(args.robustness, "--robustness")
+    outputs = [("--plot", args.plot), ("--save", args.save), ("--robustness", args.robustness)]
+    if args.robustness:
+        outputs.append(("--robustness", robustness_numbers(args.robustness)))
+    outputs = [(option, path) for option, path in outputs if path]
+    for option, path in outputs:
+        check_output_file(path, option)
+    check_distinct([args.file] if args.file else [], outputs)
+
+
+def run_calibrate(args) -> int:
     import numpy as np
 
     from ccjax.calibration import experiment, files, synthetic
@@ -120,6 +138,9 @@ def run_calibrate(args) -> int:
         raise ValueError("give either a calibration file DATA or --synthetic (not both)")
     if args.subsets < 1:
         raise ValueError(f"--subsets: expected a positive number, got {args.subsets}")
+    if args.camera and not args.synthetic:
+        raise ValueError("--camera applies to --synthetic only")
+    check_outputs(args)
     if args.synthetic:
         camera = args.camera
         if camera is None:  # say which camera was chosen and why, never switch silently
@@ -146,8 +167,6 @@ def run_calibrate(args) -> int:
         print(table.to_json() if args.json else report.text(), flush=True)
         title = f"{camera}: fitted (solid) vs true (dashed) sensors"
     else:
-        if args.camera:
-            raise ValueError("--camera applies to --synthetic only")
         data = files.read_calibration_csv(args.file)
         spectra, raw = data.spectra, data.responses
         black = 0.0 if args.black is None else args.black
@@ -194,8 +213,7 @@ def run_calibrate(args) -> int:
             )
         title = f"{args.file}: fitted sensors"
     if args.plot:
-        experiment.plot_sensors(table, args.plot, truth=truth, title=title)
-        print(f"wrote {args.plot}", file=sys.stderr)
+        write_plot(args.plot, lambda file: experiment.plot_sensors(table, file, truth=truth, title=title))
     if args.save:
         fit = table.row(experiment.JOINT).fit
         files.write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation)
@@ -222,15 +240,9 @@ def run_calibrate(args) -> int:
         )
         if not args.json:
             print("\n" + result.text())
-        experiment.plot_robustness(
-            result,
-            args.robustness,
-            title=f"robustness: {args.subsets} random subsets per size",
-        )
-        numbers = os.path.splitext(args.robustness)[0] + ".json"
-        with open(numbers, "w") as f:
-            f.write(result.to_json())
-        print(f"wrote {args.robustness} and {numbers}", file=sys.stderr)
+        title = f"robustness: {args.subsets} random subsets per size"
+        write_plot(args.robustness, lambda file: experiment.plot_robustness(result, file, title=title))
+        write(robustness_numbers(args.robustness), result.to_json())
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0
 

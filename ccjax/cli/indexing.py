@@ -6,8 +6,8 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import label_list, world_arguments, write
-from ccjax.cli.photos import image_world
+from ccjax.cli.common import check_output_file, label_list, world_arguments, write
+from ccjax.cli.photos import check_labels, image_world
 
 DEFAULT_INDEXING_METHODS = [
     "ACTUAL",
@@ -90,7 +90,16 @@ def run_indexing(args) -> int:
 
     from ccjax import experiments
     from ccjax.experiments import indexing
+    from ccjax.preprocessing import as_preprocessing
 
+    # Everything the run needs is checked before the world is built (issue 17 item 7).
+    if args.json:
+        check_output_file(args.json, "--json")
+    check_labels([label for label in args.methods or [] if label != "ACTUAL"])
+    as_preprocessing(args.preprocessing)
+    for option in ("objects", "surfaces", "lights", "size"):
+        if getattr(args, option) < 1:
+            raise ValueError(f"--{option}: expected a positive number, got {getattr(args, option)}")
     methods = args.methods or [m for m in DEFAULT_INDEXING_METHODS if m == "ACTUAL" or experiments.is_registered(m)]
     start = time.perf_counter()
     world = image_world(args)

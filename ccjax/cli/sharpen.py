@@ -6,7 +6,7 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import build_world, world_arguments
+from ccjax.cli.common import build_world, check_plot, world_arguments, write_plot
 
 
 def add_sharpen(sub) -> None:
@@ -104,7 +104,10 @@ def run_sharpen(args) -> int:
     from ccjax import sharpening
     from ccjax.experiments import chapter5_report
 
+    check_plot(args.plot)
     if args.rank_cameras:
+        if args.plot:
+            raise ValueError("--plot: plots one transform; it does not apply to --rank-cameras")
         return run_rank_cameras(args)
     start = time.perf_counter()
     world = build_world(args)
@@ -155,13 +158,8 @@ def run_sharpen(args) -> int:
         )
         print(f"  ACTUAL         none / T      {info['actual_unsharpened']:8.3f} / {info['actual_sharpened']:8.3f}")
     if args.plot:
-        chapter5_report.plot_sensors(
-            world,
-            transform,
-            args.plot,
-            title=f"{world.camera.name}: {args.method} sharpening",
-        )
-        print(f"wrote {args.plot}", file=sys.stderr)
+        title = f"{world.camera.name}: {args.method} sharpening"
+        write_plot(args.plot, lambda file: chapter5_report.plot_sensors(world, transform, file, title=title))
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0
 

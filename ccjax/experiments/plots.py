@@ -11,6 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ccjax.experiments.sweeps import SweepResult
+from ccjax.io.writing import write_figure
 from ccjax.world import World
 
 STATISTIC_LABELS = {
@@ -38,7 +39,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
 
     Arguments:
         result: a sweep.
-        path: the PNG to write.
+        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
         statistics: one panel per statistic.
         summary: the summary of the per-scene errors (``"rms"`` as in the thesis).
         title: the figure title (default: the scenes per point).
@@ -64,8 +65,10 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
     fig.legend(handles, names, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.suptitle(title or f"{result.n_scenes} scenes per point")
     fig.tight_layout()
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        write_figure(fig, path, dpi=120, bbox_inches="tight")
+    finally:
+        plt.close(fig)
 
 
 def plot_world(world: World, path) -> None:
@@ -73,7 +76,7 @@ def plot_world(world: World, path) -> None:
 
     Arguments:
         world: the world.
-        path: the PNG to write.
+        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
     """
     from ccjax.spectra import chromaticity
 
@@ -96,5 +99,7 @@ def plot_world(world: World, path) -> None:
     axes[0].legend()
     fig.suptitle(f"{world.name}: (r,g) chromaticities")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
