@@ -32,6 +32,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
     )
     from ccjax.scenes import Scenes, ShotNoise, Specular, sample
     from ccjax.spectra import WAVELENGTHS
+    from ccjax.training import load_model
     from ccjax.world import World
 
 __version__ = "0.1.0"
@@ -53,6 +54,7 @@ _SOURCES = {
     "estimate": "ccjax._estimate",
     "estimate_batch": "ccjax.estimators",
     "fit": "ccjax.estimators",
+    "load_model": "ccjax.training",
     "sample": "ccjax.scenes",
 }
 """The module each top-level name comes from."""
@@ -91,6 +93,7 @@ __all__ = [
     "estimate",
     "estimate_batch",
     "fit",
+    "load_model",
     "metrics",
     "sample",
 ]

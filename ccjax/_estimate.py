@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 
-from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, fit, validate_input
+from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, fit_cached, validate_input
 from ccjax.world import World
 
 
@@ -32,7 +32,8 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
         An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like ``x``.
     """
     if isinstance(method, str):
-        model = fit(method, world if world is not None else _default_world())
+        # Memoised per (label, world): repeated calls reuse the fitted model (and its compiled code).
+        model = fit_cached(method, world if world is not None else _default_world())
     elif isinstance(method, AbstractEstimator):
         model = method
     else:

@@ -171,8 +171,11 @@ def _estimates(model, queries: np.ndarray, preprocessing, dark: float) -> tuple[
     if model.input_kind == "image":
         rgb, mask = jnp.asarray(flat), jnp.ones(flat.shape[:3], bool)
     else:
+        # The thesis' dark rule (relative to the brightest pixel, as ``_dark_mask``): these
+        # synthetic images have no highlights, and Table 11.1 is defined with it.
         lists = [
-            surfaces(LinearImage(image, np.zeros(image.shape[:2], bool)), preprocessing, dark=dark) for image in flat
+            surfaces(LinearImage(image, np.zeros(image.shape[:2], bool)), preprocessing, dark=dark, percentile=100.0)
+            for image in flat
         ]
         # Each list is padded to its own size class; the batch takes the largest (one compilation).
         size = max(len(data) for data, _ in lists)
