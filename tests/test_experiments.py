@@ -263,7 +263,7 @@ def test_every_command_group_builds_and_has_help(capsys):
     }  # fmt: skip
     assert set(commands) == {
         "compare", "reproduce", "world", "cameras", "methods", "estimate", "correct", "evaluate", "indexing",
-        "train-net", "sharpen", "calibrate",
+        "train", "train-net", "sharpen", "calibrate",
     }  # fmt: skip
     for command in commands:
         with pytest.raises(SystemExit) as exit_:
