@@ -135,7 +135,8 @@ class Camera(eqx.Module):
         known = ", ".join(sorted(embedded)[:6])
         raise ValueError(
             f"camera: unknown name {name!r}. Embedded cameras include {known}, ...; "
-            "'Sony DXC-930' and 'Jiang: <model>' need the external data; ccjax.cameras() lists all."
+            "'Sony DXC-930' and 'Jiang: <model>' need the external data; "
+            "the `ccjax cameras` command (or ccjax.cameras()) lists all."
         )
 
     def response(self, signal: Float[ArrayLike, "... 101"]) -> Float[Array, "... 3"]:
