@@ -26,7 +26,13 @@ if TYPE_CHECKING:
 
 
 def groups() -> tuple[ModuleType, ...]:
-    """The command groups, in ``ccjax --help`` order (``GROUPS``)."""
+    """The command groups, in ``ccjax --help`` order (``GROUPS``).
+
+    Returns:
+        The ``ccjax.cli`` group modules (synthetic, catalogue, photos, indexing, training, sharpen,
+        calibrate), imported on this call; each lists its ``add_<command>`` functions in
+        ``COMMANDS``.
+    """
     from ccjax.cli import calibrate, catalogue, indexing, photos, sharpen, synthetic, training
 
     return (synthetic, catalogue, photos, indexing, training, sharpen, calibrate)
@@ -51,7 +57,12 @@ def __getattr__(name: str) -> object:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``ccjax`` argument parser with every sub-command."""
+    """The ``ccjax`` argument parser with every sub-command.
+
+    Returns:
+        A new parser (``prog="ccjax"``) whose required sub-command is stored in ``command``; each
+        sub-command sets ``func``, the ``run_<command>(args)`` that :func:`main` calls.
+    """
     import argparse
 
     parser = argparse.ArgumentParser(
@@ -66,14 +77,29 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def prefix(command: str | None) -> str:
-    """``"ccjax <command>"`` for messages, ``"ccjax"`` before the command is known."""
+    """``"ccjax <command>"`` for messages, ``"ccjax"`` before the command is known.
+
+    Arguments:
+        command: the sub-command's name, or ``None`` (or empty) when it was not parsed yet.
+
+    Returns:
+        The prefix for error and interrupt messages, e.g. ``"ccjax compare"``.
+    """
     return f"ccjax {command}" if command else "ccjax"
 
 
 def interrupted(error: BaseException) -> bool:
     """Whether ``error`` is Ctrl-C or was caused by it: a ``KeyboardInterrupt`` raised while an
     extension module initialises (numpy, jaxlib) reaches the caller as an ``ImportError`` whose
-    ``__cause__`` / ``__context__`` chain holds it."""
+    ``__cause__`` / ``__context__`` chain holds it.
+
+    Arguments:
+        error: the exception that stopped the command.
+
+    Returns:
+        True when ``error`` or any exception in its cause/context chain (followed once each, so a
+        cyclic chain ends) is a ``KeyboardInterrupt``.
+    """
     seen: set[int] = set()
     current: BaseException | None = error
     while current is not None and id(current) not in seen:

@@ -122,7 +122,18 @@ the RMS, :func:`ccjax.experiments.sweeps.sampling_error`), in the units of ``our
 
 @dataclass
 class Reproduction:
-    """Our value, the thesis' value and their relative difference per (method, column)."""
+    """Our value, the thesis' value and their relative difference per (method, column).
+
+    Attributes:
+        table: the thesis table id (``"4.2"``, ``"8.3"``, ...), a key of :data:`PROTOCOLS`.
+        rows: one dict per (method, column) cell, in the order of the methods, with keys
+            ``method``, ``column``, ``ours``, ``thesis``, ``relative_difference`` (``ours / thesis -
+            1``), ``sampling_error`` (standard error of ``ours`` over the scenes) and
+            ``ok_fraction`` (share of scenes the method answered with ``ok``); RGB-valued errors
+            are in thesis units (white = 255), the columns of :data:`REPRODUCTION_COLUMNS`.
+        notes: extra footer lines of the report (Table 7.2: the fluorescent characterisation's
+            prediction error per surface, §7.1).
+    """
 
     table: str
     rows: list[dict]

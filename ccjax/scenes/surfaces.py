@@ -68,7 +68,13 @@ class Scenes(eqx.Module):
 @dataclass(frozen=True)
 class Specular:
     """Dielectric specularities (Barnard 1999 §4.7, ch. 8): each surface is specular with
-    ``probability`` and then gains ``U(0, max_amount)`` times a perfect white reflectance."""
+    ``probability`` and then gains ``U(0, max_amount)`` times a perfect white reflectance.
+
+    Attributes:
+        probability: chance, in ``[0, 1]``, that a surface is specular (thesis: 0.25).
+        max_amount: upper end of the uniform highlight strength, in units of a perfect white
+            reflectance (thesis: 2, so a highlight adds up to twice a white's RGB); ``>= 0``.
+    """
 
     probability: float = 0.25
     max_amount: float = 2.0
@@ -81,7 +87,14 @@ class Specular:
 @dataclass(frozen=True)
 class ShotNoise:
     """Chapter 3 noise model on the unit scale: ``rho + sqrt(a * rho + b) * N(0, 1)``, clamped at
-    zero (a sensor cannot report a negative count). Defaults: ``a = 2e-6``, ``b = (0.05/255)^2``."""
+    zero (a sensor cannot report a negative count). Defaults: ``a = 2e-6``, ``b = (0.05/255)^2``.
+
+    Attributes:
+        a: signal-dependent (shot) variance per unit of response, so the variance grows linearly
+            with ``rho``; on the unit scale (``rho = 1`` is 255 in thesis units); ``>= 0``.
+        b: signal-independent variance (the noise floor at ``rho = 0``), on the unit scale (the
+            default is a standard deviation of 0.05 in thesis units, white = 255); ``>= 0``.
+    """
 
     a: float = 2e-6
     b: float = (0.05 / 255.0) ** 2

@@ -205,6 +205,13 @@ def load_model(path: str | os.PathLike) -> AbstractEstimator:
     """Read a model written by :func:`save_trained` (format :data:`ccjax._cache.FORMAT_VERSION`):
     its skeleton is the label fitted to the recorded camera's default world, its leaves the file's.
 
+    Arguments:
+        path: the model file (as written by :func:`save_trained`, e.g. by ``ccjax train --out``).
+
+    Returns:
+        The trained estimator: the recorded method label fitted to ``World.default(camera,
+        seed=world_seed)`` from the file's record, with every array leaf replaced by the file's.
+
     Raises:
         ValueError: not a trained-model file, another format version, or leaves that do not fit.
     """

@@ -47,7 +47,15 @@ def chromaticity(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
 def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:
     """(r,g) bin coordinates ``floor(50 r), floor(50 g)`` clipped to ``0..49`` (§4.5.4), from the
     scale-free :func:`chromaticity`; a black pixel lands in the achromatic bin (the kernels ignore
-    black pixels)."""
+    black pixels).
+
+    Arguments:
+        rgb: ``(..., 3)`` non-negative camera RGB (any scale).
+
+    Returns:
+        ``(..., 2)`` integer bin indices ``(i, j)`` in ``0..49`` of ``r = R/(R+G+B)`` and
+        ``g = G/(R+G+B)``; the flat bin (a correlation-matrix row) is ``50 i + j``.
+    """
     return rg_bin(chromaticity(rgb), RG_BINS)
 
 
@@ -58,7 +66,12 @@ def rg_bins_np(rgb: np.ndarray) -> np.ndarray:
 
 def compact_rg_cells() -> np.ndarray:
     """``(2500,)`` compact index of each (r,g) bin ``50 i + j``: ``0..1274`` where ``i + j <= 49``
-    (row-major over the possible half), ``-1`` for impossible bins (r + g > 1, §10.2)."""
+    (row-major over the possible half), ``-1`` for impossible bins (r + g > 1, §10.2).
+
+    Returns:
+        ``(2500,)`` int64 array: entry ``50 i + j`` is the bin's index among the 1275 possible bins
+        (``N_RG_CELLS``), or ``-1`` where ``i + j > 49``.
+    """
     i, j = np.divmod(np.arange(RG_BINS * RG_BINS), RG_BINS)
     possible = i + j <= RG_BINS - 1
     cells = np.full(RG_BINS * RG_BINS, -1, np.int64)
@@ -78,7 +91,20 @@ def presence_scores(
     log_probability: Float[Array, "C I"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]
 ) -> Float[Array, " I"]:
     """``M x`` of §4.5.4: the sum of the matrix rows of the (r,g) bins present in the scene (each
-    bin once, whatever the number of pixels in it)."""
+    bin once, whatever the number of pixels in it).
+
+    Arguments:
+        log_probability: ``(2500, I)`` matrix, row ``50 i + j`` for (r,g) bin ``(i, j)``, one column
+            per training illuminant: log P(bin | illuminant) for C-by-C, or the 0/1 compatibility
+            matrix for C-by-C-01.
+        rgb: ``(P, 3)`` the scene's camera RGB.
+        valid: ``(P,)`` True for the pixels to count (:func:`valid_pixels`).
+
+    Returns:
+        ``(I,)`` per illuminant, the sum of the rows of the distinct bins of the valid pixels: the
+        log-likelihood (unnormalised log-posterior under a uniform prior), or with a 0/1 matrix the
+        number of scene bins compatible with it. All zeros when no pixel is valid.
+    """
     bins = rg_bins(rgb)
     cells, first = _unique_first(bins[:, 0] * RG_BINS + bins[:, 1], valid)
     rows = log_probability.at[jnp.where(first, cells, 0)].get(mode="promise_in_bounds")
@@ -123,7 +149,19 @@ def soft_presence_scores(
     log_probability: Float[Array, "C I"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"], softness: float
 ) -> Float[Array, " I"]:
     """Differentiable :func:`presence_scores`: each pixel spreads over the 2 x 2 bins around it
-    (:func:`soft_axis`), bins are present with probability ``1 - prod(1 - w)``."""
+    (:func:`soft_axis`), bins are present with probability ``1 - prod(1 - w)``.
+
+    Arguments:
+        log_probability: ``(2500, I)`` log P(bin | illuminant), row ``50 i + j`` for (r,g) bin
+            ``(i, j)``, as for :func:`presence_scores`.
+        rgb: ``(P, 3)`` the scene's camera RGB (gradients reach it through the bin weights).
+        valid: ``(P,)`` True for the pixels to count; invalid pixels get zero weight.
+        softness: soft binning scale in bins (``DEFAULT_SOFTNESS`` is 0.1); as it goes to 0 the
+            result tends to :func:`presence_scores`.
+
+    Returns:
+        ``(I,)`` per illuminant, the sum over bins of presence probability times the bin's row.
+    """
     # Black pixels sit at the achromatic point; their weights are zeroed by ``valid``.
     scaled = chromaticity(rgb) * RG_BINS
     (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)

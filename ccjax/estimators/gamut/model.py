@@ -149,6 +149,16 @@ class GamutMapping(AbstractSurfaceEstimator):
 
     ``GamutMapping(model, "SCWIA", 12)`` is ECRULE-SCWIA-12 when ``model`` is an ECRULE model.
     Call it on one scene, ``(rgb (P, 3), mask (P,)) -> Estimate``; vmap for batches.
+
+    Attributes:
+        model: the fitted :class:`GamutModel` (CRULE or ECRULE, with its canonical-gamut
+            extension), from :func:`fit`.
+        selector: how one light is chosen from the feasible set (§4.5.3, §6.2): ``"MV"`` (maximum
+            volume), ``"AVE"`` (centroid of the feasible maps), ``"ICA"`` (illumination-constrained
+            average; ECRULE only) or ``"SCWIA"`` (surface-constrained chromaticity-weighted
+            illumination average).
+        power: SCWIA's ``N``, the exponent of its weights (must be positive; 12 as in
+            ECRULE-SCWIA-12); ignored by the other selectors.
     """
 
     model: GamutModel
@@ -179,6 +189,12 @@ def estimate_all(
     model: GamutModel, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"], powers=(3, 6, 9, 12, 18, 24)
 ) -> dict[str, Estimate]:
     """Every selector of a model from ONE evaluation of the direction grid.
+
+    Arguments:
+        model: the fitted :class:`GamutModel`.
+        rgb: ``(P, 3)`` one scene's camera RGB.
+        mask: ``(P,)`` True where a pixel may be used.
+        powers: the SCWIA exponents ``N`` to report, one ``"SCWIA-N"`` entry each.
 
     Returns:
         ``{"MV": ..., "AVE": ..., "ICA": ... (ECRULE only), "SCWIA-N": ...}``.

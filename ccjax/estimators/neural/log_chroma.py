@@ -36,7 +36,20 @@ def log_chroma_histogram(
     rgb: Float[Array, "P 3"], mask: Bool[Array, " P"], bins: int = LOG_CHROMA_BINS, extent: float = LOG_CHROMA_EXTENT
 ) -> Float[Array, " n"]:
     """Square root of the normalised histogram of the valid surfaces' log-chroma, flattened
-    (``bins * bins``; values outside the range land in the edge bins)."""
+    (``bins * bins``; values outside the range land in the edge bins).
+
+    Arguments:
+        rgb: ``(P, 3)`` camera RGB of the surfaces; a surface with any channel at or below
+            :data:`TINY` is not counted.
+        mask: ``(P,)`` True where a surface may be used.
+        bins: divisions per log-chroma axis.
+        extent: half-width of the range covered on each axis, ``[-extent, extent]``.
+
+    Returns:
+        ``(bins * bins,)`` ``sqrt(count / number of valid surfaces)``, bin ``(i, j)`` (``i`` along
+        ``log(G / R)``, ``j`` along ``log(G / B)``) at index ``bins * i + j``; all zeros when no
+        surface is valid.
+    """
     valid = mask & jnp.all(rgb > TINY, axis=-1)
     cells = jnp.clip(jnp.floor((log_chroma(rgb) + extent) / (2 * extent) * bins), 0, bins - 1).astype(jnp.int32)
     weight = valid.astype(rgb.dtype)
@@ -71,7 +84,20 @@ def init_log_chroma_net(
     key: PRNGKeyArray, fallback: Float[Array, "3"], *, hidden: int = 64, bins: int = LOG_CHROMA_BINS
 ) -> LogChromaNet:
     """An untrained :class:`LogChromaNet` (the start of training); its last layer is zeroed so the
-    untrained estimate is the grey light ``(1, 1, 1) / 3``."""
+    untrained estimate is the grey light ``(1, 1, 1) / 3``.
+
+    Arguments:
+        key: PRNG key for the MLP's initial weights.
+        fallback: ``(3,)`` RGB light returned (with ``ok=False``) for a scene without valid
+            surfaces, e.g. the average training illuminant.
+        hidden: width of the MLP's two hidden layers.
+        bins: divisions per axis of the input histogram (the MLP takes ``bins * bins`` inputs);
+            the histogram's extent is the default :data:`LOG_CHROMA_EXTENT`.
+
+    Returns:
+        A :class:`LogChromaNet` with a ``bins^2 -> hidden -> hidden -> 2`` ReLU MLP whose last
+        layer is zero.
+    """
     net = eqx.nn.MLP(bins * bins, 2, hidden, depth=2, activation=jax.nn.relu, key=key)
     last = net.layers[-1]
     zero_weight, zero_bias = jnp.zeros_like(last.weight), jnp.zeros(last.weight.shape[0], last.weight.dtype)
