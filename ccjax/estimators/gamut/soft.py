@@ -74,9 +74,9 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
         model, options = self.model, self.model.options
         rgb = jnp.asarray(rgb)
         # Scale-free: the estimate is homogeneous in the scene, so work on it divided by its scale.
-        _, scale = usable_observations(rgb, mask)
-        scale = jnp.where(scale > 0, scale, 1.0)
-        rgb = rgb / scale
+        _, scene_scale = usable_observations(rgb, mask)
+        scene_scale = jnp.where(scene_scale > 0, scene_scale, 1.0)
+        rgb = rgb / scene_scale
         obs, q, usable = observations(model, rgb, mask)
         lo, hi = jax.lax.stop_gradient(locate_box(model, obs, q, usable, options))
         rg, _ = square_grid(lo - self.margin, hi + self.margin, options.fine_points)
@@ -113,4 +113,4 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
             estimate = average.estimate(u, v, log_t, white, log_mask)
         else:
             estimate = scwia.estimate(u, log_t, inverse, white, self.power, log_mask)
-        return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype), scale)
+        return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype), scene_scale)
