@@ -65,7 +65,7 @@ def test_learn_correlation_quick():
 
 def test_learned_sharpening_quick():
     out = run_example("learned_sharpening.py", "--quick")
-    rows = table_rows(out, r"(GW|soft-RETINEX)")
+    rows = table_rows(out, r"(GW|soft-RETINEX\S*)\s+\w+\s+(none|new|learned)\s")
     assert len(rows) == 6  # two estimators x (none, new, learned)
     assert "learned T =" in out
 
@@ -73,7 +73,7 @@ def test_learned_sharpening_quick():
 def test_synthetic_raw_evaluation_quick():
     out = run_example("synthetic_raw_evaluation.py", "--quick")
     assert "wrote 60 images of 64x64" in out
-    rows = table_rows(out, r"(GW|grey-edge-1-6-2)\s")
+    rows = table_rows(out, r"(GW|grey-edge-1-6-2)\s")[:2]  # the first table: mean, median, ...
     assert len(rows) == 2 and all(0 < row[0] < 30 for row in rows)
 
 

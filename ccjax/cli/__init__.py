@@ -7,6 +7,8 @@ One module per command group; each declares ``add_<command>(subparsers)`` (its a
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import os
 import sys
 from typing import TYPE_CHECKING
@@ -53,6 +55,8 @@ def __getattr__(name: str) -> object:
         from ccjax.cli.indexing import DEFAULT_INDEXING_METHODS
 
         return DEFAULT_INDEXING_METHODS
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f"{__name__}.{name}")  # ``ccjax.cli.photos`` and the other groups
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -58,6 +58,24 @@ def log_chroma_histogram(
 
 
 @typing.final
+class ReluMLP(eqx.Module):
+    """A ReLU multilayer perceptron whose leaves are only its weights and biases (``eqx.nn.MLP``
+    keeps its activation function as a leaf, which a fitted model must not have: every leaf is an
+    array, so the model itself is a ``jax.jit`` / ``jax.grad`` argument).
+
+    Attributes:
+        layers: the linear layers; ReLU between them, none after the last.
+    """
+
+    layers: tuple[eqx.nn.Linear, ...]
+
+    def __call__(self, x: Float[Array, " n"]) -> Float[Array, " m"]:
+        for layer in self.layers[:-1]:
+            x = jax.nn.relu(layer(x))
+        return self.layers[-1](x)
+
+
+@typing.final
 class LogChromaNet(AbstractSurfaceEstimator):
     """MLP on the log-chroma histogram (module docstring).
 
@@ -67,7 +85,7 @@ class LogChromaNet(AbstractSurfaceEstimator):
         bins, extent: the histogram grid (static).
     """
 
-    net: eqx.nn.MLP
+    net: ReluMLP
     fallback: Float[Array, "3"]
     bins: int = eqx.field(static=True, default=LOG_CHROMA_BINS)
     extent: float = eqx.field(static=True, default=LOG_CHROMA_EXTENT)
@@ -98,8 +116,13 @@ def init_log_chroma_net(
         A :class:`LogChromaNet` with a ``bins^2 -> hidden -> hidden -> 2`` ReLU MLP whose last
         layer is zero.
     """
-    net = eqx.nn.MLP(bins * bins, 2, hidden, depth=2, activation=jax.nn.relu, key=key)
-    last = net.layers[-1]
-    zero_weight, zero_bias = jnp.zeros_like(last.weight), jnp.zeros(last.weight.shape[0], last.weight.dtype)
-    net = eqx.tree_at(lambda n: (n.layers[-1].weight, n.layers[-1].bias), net, (zero_weight, zero_bias))
+    first, second = jax.random.split(key)
+    last = eqx.nn.Linear(hidden, 2, key=key)
+    # Zero last layer: the untrained estimate is grey.
+    last = eqx.tree_at(
+        lambda n: (n.weight, n.bias), last, (jnp.zeros_like(last.weight), jnp.zeros(2, last.weight.dtype))
+    )
+    net = ReluMLP(
+        layers=(eqx.nn.Linear(bins * bins, hidden, key=first), eqx.nn.Linear(hidden, hidden, key=second), last)
+    )
     return LogChromaNet(net=net, fallback=jnp.asarray(fallback), bins=bins)
