@@ -278,6 +278,12 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     Arguments:
         model: a fitted :class:`~ccjax.estimators.gamut.GamutModel`.
         rgb: ``(P, 3)`` observed camera RGBs; ``mask``: ``(P,)`` valid ones.
+
+    Returns:
+        A :class:`Grid`: the fine grid of illuminant directions with each direction's constraint
+        violation and its ``1/T`` terms, the observations MV refines on, the scene's scale, and the
+        ``exact`` flag of the observation reduction — what every selector (``selectors.select``)
+        turns into an estimate.
     """
     options: GridOptions = model.options
     rgb = jnp.asarray(rgb)
