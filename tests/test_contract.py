@@ -135,7 +135,10 @@ def test_jit_and_vmap_and_degenerate_scenes(label, fitted, surface_batch, image_
     one, many = _one_and_batch(model, x, mask)
     assert isinstance(one, Estimate) and one.illuminant.shape == (3,)
     assert many.illuminant.shape == (3, 3) and many.ok.shape == many.status.shape == (3,)
-    np.testing.assert_allclose(one.illuminant, many.illuminant[0], rtol=1e-5, atol=1e-7)
+    # MV's pattern search runs in float32; one scene and the vmapped batch compile to differently
+    # fused programs, whose rounding moves its optimum by ~1e-5 relative (measured 1.5e-5, CRULE-MV).
+    rtol = 1e-4 if label.endswith("-MV") else 1e-5
+    np.testing.assert_allclose(one.illuminant, many.illuminant[0], rtol=rtol, atol=1e-7)
     illuminant, status = np.asarray(many.illuminant), np.asarray(many.status)
     assert np.all(np.isfinite(illuminant)), illuminant
     assert set(status.tolist()) <= {int(s) for s in Status}

@@ -170,10 +170,19 @@ def test_grad_through_vmapped_model_on_1000_scenes(label, default_world):
         x, mask, truth = batch.rgb, batch.mask, batch.illuminant
 
     @jax.jit
-    def gradient(x):
+    def gradient(x, mask, truth):
         return jax.grad(lambda x: losses.angular_loss(jax.vmap(model)(x, mask).illuminant, truth))(x)
 
-    grad = np.asarray(gradient(x))
+    # The loss is a mean over scenes, so its gradient is the chunks' gradients weighted by their
+    # share: 40 chunks of 25 scenes keep the soft gamut's (scenes x directions x facets) residuals
+    # for the backward pass at about 1 GB instead of 38 GB.
+    chunk = 25
+    grad = np.concatenate(
+        [
+            np.asarray(gradient(x[i : i + chunk], mask[i : i + chunk], truth[i : i + chunk])) * (chunk / len(x))
+            for i in range(0, len(x), chunk)
+        ]
+    )
     norm = float(np.linalg.norm(grad))
     per_scene = np.linalg.norm(grad.reshape(grad.shape[0], -1), axis=1)
     print(f"{label}: |grad| = {norm:.3e}, scenes with a non-zero gradient {np.mean(per_scene > 0):.3f}")
