@@ -155,6 +155,7 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ccjax.io.writing import write_figure
     from ccjax.spectra import chromaticity
 
     whites = chromaticity(_world_whites(world))
@@ -169,7 +170,7 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     verdict = "passes" if check.passed else "fails"
     ax.set_title(f"median distance {check.distance:.4f} (threshold {check.threshold:.3f}): {verdict}", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
+    write_figure(fig, path, dpi=110)  # atomic for paths; file objects pass through (PNG)
     plt.close(fig)
 
 

@@ -230,6 +230,7 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ccjax.io.writing import write_figure
     from ccjax.spectra import WAVELENGTHS
 
     original = np.asarray(world.camera.sensors, dtype=np.float64)
@@ -245,7 +246,7 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
     axes[0].set_ylabel("relative sensitivity")
     fig.suptitle(title or world.camera.name)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)  # atomic for paths; file objects pass through
     plt.close(fig)
 
 
