@@ -1,18 +1,25 @@
-"""Stress command: every gamut-mapping selector on many large scenes, with and without ND.
+"""Stress command: every gamut-mapping selector and every extended estimator on many scenes.
 
-For CRULE, ECRULE, ND-CRULE and ND-ECRULE it runs every selector (MV, AVE, ICA for ECRULE,
-SCWIA-3/12/24) from one evaluation of the direction grid on ``--scenes`` synthetic scenes of
-``--surfaces`` surfaces (default 10^4 scenes of 1024 surfaces, where the diagonal model fails
-often without ND), and prints per model: NaN count (must be 0), the fraction of scenes that
-needed relaxation, that fell back (no solution at any level), whose observation reduction
-overflowed, the rg RMS of each selector, and the time.
+Gamut mapping: for CRULE and ECRULE with each canonical-gamut extension (none, ND, FL, SP, MET and
+the combinations SP-ND, MET-ND, SP-FL, MET-FL; ch. 6-9) it runs every selector (MV, AVE, ICA for
+ECRULE, SCWIA-3/6/12/24) from one evaluation of the direction grid. Colour by Correlation: the
+extended labels (FL-, SPEC-, FL-SPEC- C-by-C and RGB-C-by-C, MAP and MMSE; ch. 7, 10). The scenes
+are ``--scenes`` synthetic scenes per surface count (default 10^4 at each of 4, 8, ..., 1024) of the
+thesis world with every material on (``--materials all``: dielectric highlights p = 0.25, metallic
+highlights p = 0.25 of the six metals, fluorescent surfaces p = 0.3 from the physical model, so
+the inputs are the ones the extensions exist for and beyond them) or matte (``--materials
+none``), chunked to bound memory. Per estimator and surface count it prints the NaN count (must be
+0), the share of scenes not ok (relaxed; fell back: no solution at any level or no data), for
+gamut mapping the share whose observation reduction overflowed, the rg RMS, and the time.
 
-Usage: python benchmarks/gamut_stress.py [--scenes 10000] [--surfaces 1024] [--chunk 256]
+Usage: python benchmarks/gamut_stress.py [--scenes 10000] [--surfaces 4,8,...,1024] [--chunk 250]
+[--extensions none,ND,FL,SP,MET,SP-ND,MET-ND,SP-FL,MET-FL] [--cbc all|none] [--materials all|none]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import equinox as eqx
@@ -20,67 +27,112 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ccjax import metrics
-from ccjax.estimators import gamut
+from ccjax import materials, metrics
+from ccjax.estimators import gamut, registry
 from ccjax.estimators.base import Status
-from ccjax.scenes import SceneTables, resolve_options, sample_batch, scene_keys
+from ccjax.scenes import Fluorescent, Metallic, SceneTables, Specular, sample_batch, scene_keys
 from ccjax.world import World
+
+EXTENSIONS = ("none", "ND", "FL", "SP", "MET", "SP-ND", "MET-ND", "SP-FL", "MET-FL")
+CBC_LABELS = (
+    "FL-C-by-C-MAP",
+    "FL-C-by-C-MMSE",
+    "SPEC-C-by-C-MMSE",
+    "FL-SPEC-C-by-C-MMSE",
+    "FL-RGB-C-by-C-MAP",
+    "FL-RGB-C-by-C-MMSE",
+    "SPEC-RGB-C-by-C-MMSE",
+    "FL-SPEC-RGB-C-by-C-MMSE",
+)
+SIZES = (4, 8, 16, 32, 64, 128, 256, 512, 1024)
+POWERS = (3, 6, 12, 24)
+
+
+def _summary(estimate, truth):
+    return {
+        "nan": jnp.sum(~jnp.isfinite(estimate.illuminant)),
+        "relaxed": estimate.status == Status.RELAXED,
+        "fell_back": (estimate.status == Status.EMPTY_SET) | (estimate.status == Status.NO_DATA),
+        "rg": metrics.rg_error(estimate.illuminant, truth),
+    }
+
+
+def _scenes(tables, keys, n_surfaces, materials_on):
+    if not materials_on:
+        return sample_batch(keys, tables, n_surfaces, None, None, None)
+    return sample_batch(keys, tables, n_surfaces, Specular(), None, None, Metallic(), Fluorescent())
 
 
 @eqx.filter_jit
-def _chunk(model, tables, keys, n_surfaces):
-    batch = sample_batch(keys, tables, n_surfaces, None, None, None)
-    out = jax.vmap(lambda r, m: gamut.estimate_all(model, r, m, powers=(3, 12, 24)))(batch.rgb, batch.mask)
+def _gamut_chunk(model, tables, keys, n_surfaces, materials_on):
+    batch = _scenes(tables, keys, n_surfaces, materials_on)
+    out = jax.vmap(lambda r, m: gamut.estimate_all(model, r, m, powers=POWERS))(batch.rgb, batch.mask)
     # The diagnostic re-runs the (cheap) locating stage and reduction; the estimates are unaffected.
     exact = jax.vmap(gamut.GamutMapping(model, "MV").reduction_exact)(batch.rgb, batch.mask)
-    summary = {}
-    for name, estimate in out.items():
-        summary[name] = {
-            "nan": jnp.sum(~jnp.isfinite(estimate.illuminant)),
-            "relaxed": estimate.status == Status.RELAXED,
-            "fell_back": (estimate.status == Status.EMPTY_SET) | (estimate.status == Status.NO_DATA),
-            "inexact": ~exact,
-            "rg": metrics.rg_error(estimate.illuminant, batch.illuminant),
-        }
-    return summary
+    return {name: {**_summary(e, batch.illuminant), "inexact": ~exact} for name, e in out.items()}
+
+
+@eqx.filter_jit
+def _model_chunk(model, tables, keys, n_surfaces, materials_on):
+    batch = _scenes(tables, keys, n_surfaces, materials_on)
+    return {"": _summary(jax.vmap(model)(batch.rgb, batch.mask), batch.illuminant)}
+
+
+def _run(chunk, model, tables, key, n_surfaces, args):
+    parts = []
+    for first in range(0, args.scenes, args.chunk):
+        count = min(args.chunk, args.scenes - first)
+        keys = scene_keys(jax.random.fold_in(key, n_surfaces), first, count)
+        parts.append(jax.device_get(chunk(model, tables, keys, n_surfaces, args.materials == "all")))
+    return jax.tree_util.tree_map(lambda *x: np.concatenate([np.atleast_1d(v) for v in x]), *parts)
+
+
+def _print(label, values, n_surfaces, seconds, cpu):
+    nan = int(np.sum(values["nan"]))
+    overflow = f"   reduction overflow {np.mean(values['inexact']):6.2%}" if "inexact" in values else ""
+    print(
+        f"  {label:<26} n={n_surfaces:<5} NaN {nan:>3}   relaxed {np.mean(values['relaxed']):6.2%}   "
+        f"fell back {np.mean(values['fell_back']):6.2%}{overflow}   "
+        f"rg RMS {np.sqrt(np.mean(np.square(values['rg']))):.4f}   {seconds:.0f} s ({cpu:.0f} s CPU)",
+        flush=True,
+    )
+    return nan
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--scenes", type=int, default=10_000)
-    parser.add_argument("--surfaces", type=int, default=1024)
-    parser.add_argument("--chunk", type=int, default=256)
+    parser.add_argument("--surfaces", default=",".join(map(str, SIZES)))
+    parser.add_argument("--chunk", type=int, default=250)
+    parser.add_argument("--extensions", default=",".join(EXTENSIONS), help="gamut extensions ('none' = matte)")
+    parser.add_argument("--constraints", default="CRULE,ECRULE")
+    parser.add_argument("--cbc", default="all", help="'all' (the extended C-by-C labels), 'none' or labels")
+    parser.add_argument("--materials", choices=("all", "none"), default="all")
     args = parser.parse_args()
-    resolve_options(None, None, None)
+    sizes = [int(s) for s in args.surfaces.split(",")]
 
     world = World.barnard1999()
-    tables = SceneTables.from_world(world)
+    tables = SceneTables.from_world(world, metals=True, fluorescent=materials.synthetic_fluorescent_surfaces())
     key = jax.random.key(2024)
     total_nan = 0
-    for extension in (None, "ND"):
-        for constraint in ("CRULE", "ECRULE"):
-            model = gamut.fit(world, constraint=constraint, extension=extension)
-            label = ("ND-" if extension else "") + constraint
-            start = time.perf_counter()
-            parts = []
-            for first in range(0, args.scenes, args.chunk):
-                parts.append(jax.device_get(_chunk(model, tables, scene_keys(key, first, args.chunk), args.surfaces)))
-            elapsed = time.perf_counter() - start
-            merged = jax.tree_util.tree_map(lambda *x: np.concatenate([np.atleast_1d(v) for v in x]), *parts)
-            print(
-                f"{label} ({args.scenes} scenes x {args.surfaces} surfaces, "
-                f"{elapsed:.0f} s, {args.scenes / elapsed:.0f} scenes/s incl. compile):"
-            )
+    models = []
+    for extension in [e for e in args.extensions.split(",") if e]:
+        for constraint in args.constraints.split(","):
+            ext = None if extension == "none" else extension
+            label = ("" if ext is None else ext + "-") + constraint
+            models.append((label, _gamut_chunk, gamut.fit(world, constraint=constraint, extension=ext)))
+    cbc = CBC_LABELS if args.cbc == "all" else [] if args.cbc == "none" else args.cbc.split(",")
+    models += [(label, _model_chunk, registry.fit_cached(label, world)) for label in cbc]
+    for label, chunk, model in models:
+        print(f"{label} ({args.scenes} scenes per size, materials {args.materials}):", flush=True)
+        for n in sizes:
+            start, cpu = time.perf_counter(), time.process_time()
+            merged = _run(chunk, model, tables, key, n, args)
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
             for name, values in merged.items():
-                n = args.scenes
-                nan = int(np.sum(values["nan"]))
-                total_nan += nan
-                print(
-                    f"  {label + '-' + name:<20} NaN {nan:>3}   relaxed {np.mean(values['relaxed'][:n]):6.1%}   "
-                    f"fell back {np.mean(values['fell_back'][:n]):6.2%} "
-                    f"  reduction overflow {np.mean(values['inexact'][:n]):6.2%}   "
-                    f"rg RMS {np.sqrt(np.mean(np.square(values['rg'][:n]))):.4f}"
-                )
+                total_nan += _print(label + ("-" + name if name else ""), values, n, seconds, cpu)
+    load = os.getloadavg()
+    print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     print("no NaN" if total_nan == 0 else f"FAILED: {total_nan} NaN estimates")
 
 
