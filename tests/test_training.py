@@ -10,6 +10,7 @@ import pytest
 
 from ccjax import io, scenes, training
 from ccjax.estimators import registry
+from ccjax.estimators.correlation import ColourByCorrelation
 
 LABEL = "C-by-C-MMSE"
 
@@ -56,6 +57,7 @@ def test_adam_reduces_the_loss_and_touches_only_learnable_leaves(start, examples
     # Fixed data (no subsets, no relighting), validation = training: gradient descent must lower it.
     assert log.train_loss[-1] < log.train_loss[0]
     assert min(log.heldout_median) <= log.initial_median
+    assert isinstance(model, ColourByCorrelation) and isinstance(start, ColourByCorrelation)
     assert not np.array_equal(model.log_probability, start.log_probability)
     np.testing.assert_array_equal(model.illuminant_rg, start.illuminant_rg)
     np.testing.assert_array_equal(model.fallback, start.fallback)
@@ -161,3 +163,31 @@ def test_train_command(image_set, tmp_path, capsys):
     assert isinstance(
         training.load_model(out), type(registry.fit_cached(LABEL, __import__("ccjax").world.World.default()))
     )
+
+
+def test_estimate_with_a_model_file(start, examples, image_set, tmp_path, capsys):
+    """``ccjax estimate IMAGE --model FILE`` loads the trained model (ccjax.load_model) and gives the
+    in-memory trained model's estimate; the untrained start's differs."""
+    import json
+
+    import ccjax
+    from ccjax import cli
+
+    folder, _ = image_set
+    schedule = training.Schedule(epochs=2, batch_size=8, learning_rate=0.2, surfaces=None, relight=0.0)
+    model, _ = training.fit_to_examples(start, examples, schedule, validation=examples, progress=False)
+    assert isinstance(model, ColourByCorrelation)
+    model = eqx.tree_at(lambda m: m.log_probability, model, model.log_probability * 1.5)  # surely not the start
+    path = training.save_trained(tmp_path / "cbc.eqx", model, label=LABEL, camera="Canon EOS 5D Mark II")
+    assert isinstance(ccjax.load_model(path), type(start))
+    image = folder / examples.names[0]
+    assert cli.main(["estimate", str(image), "--model", str(path), "--json", "--no-progress"]) == 0
+    printed = np.array(json.loads(capsys.readouterr().out)[0]["illuminant"])
+    expected, _ = training.predict(model, examples.take([0]))
+    untrained, _ = training.predict(start, examples.take([0]))
+    np.testing.assert_allclose(printed, expected[0], rtol=1e-5)
+    assert not np.allclose(printed, untrained[0], rtol=1e-3)
+    assert cli.main(["estimate", str(image), "--no-progress"]) == 2
+    assert "--method, --model: give exactly one" in capsys.readouterr().err
+    assert cli.main(["estimate", str(image), "--model", str(tmp_path / "none.eqx")]) == 2
+    assert "--model: no such model file" in capsys.readouterr().err

@@ -238,7 +238,13 @@ def add_estimate(sub) -> None:
         nargs="+",
         help="16-bit PNG/TIFF files, raw files (raw extra), or folders of them",
     )
-    p.add_argument("--method", required=True, help="estimator label (see `ccjax methods`)")
+    p.add_argument("--method", default=None, help="estimator label (see `ccjax methods`); or --model")
+    p.add_argument(
+        "--model",
+        default=None,
+        help="a trained model file (`ccjax train --out`, ccjax.training.save_trained) instead of --method: the "
+        "method and camera it was trained for come from its record",
+    )
     world_arguments(p)
     image_arguments(p)
     p.add_argument(
@@ -249,20 +255,45 @@ def add_estimate(sub) -> None:
     p.set_defaults(func=run_estimate)
 
 
+def estimate_model(args):
+    """``(label, model)`` of ``ccjax estimate``: ``--method`` fitted to the world, or the trained
+    ``--model`` file (:func:`ccjax.load_model`).
+
+    Raises:
+        ValueError: neither or both given; a model file that cannot be read.
+    """
+    if (args.method is None) == (args.model is None):
+        raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
+    if args.model is None:
+        check_labels([args.method], args)
+        return args.method, None
+    from pathlib import Path
+
+    from ccjax.training import load_model
+
+    if not Path(args.model).is_file():
+        raise ValueError(f"--model: no such model file: {args.model}")
+    if args.world != "default" or args.camera is not None:
+        raise ValueError("--model: the model's world comes from its file; leave out --world and --camera")
+    check_labels([], args)
+    model = load_model(args.model)
+    return f"{Path(args.model).name}", model
+
+
 def run_estimate(args) -> int:
     from ccjax import io
     from ccjax.experiments import evaluation
 
-    check_labels([args.method], args)
+    label, model = estimate_model(args)
     paths = io.list_images(args.images)
     masks = mask_files(paths, args.mask)
     problems = check_images(paths, args)
     good, good_masks = usable(paths, masks, problems)
-    world = image_world(args)
-    model = fit_cached(args.method, world)
+    if model is None:
+        model = fit_cached(label, image_world(args))
     results = evaluation.run_images(
         good,
-        {args.method: [model]},
+        {label: [model]},
         preprocessing=args.preprocessing,
         dark=dark_fraction(args),
         read_options=read_options(args),
@@ -483,7 +514,25 @@ def add_evaluate(sub) -> None:
         "--folds",
         type=int,
         default=None,
-        help="K-fold cross-validation: each fold's models learn the expected lights from the other folds' ground truth",
+        help="K-fold cross-validation (K >= 2). Alone: each fold's models learn the expected lights from the other "
+        "folds' ground truth (image i in fold i mod K). With --train: the folds of training (below)",
+    )
+    p.add_argument(
+        "--train",
+        type=label_list,
+        default=None,
+        metavar="METHODS",
+        help="comma-separated trainable labels (e.g. RGB-C-by-C-MMSE, grey-edge-1-6-2): with --folds K, each is "
+        "started from its fit to the world and trained (ccjax.training) on the other folds' images for each fold, "
+        "never on the fold it scores, and reported as '<label> trained' beside --methods (which are then fitted "
+        "to the world as without --folds). Folds come from the ground truth's fold column when it has one, else "
+        "a random assignment seeded by --seed; statistics per fold and pooled",
+    )
+    p.add_argument(
+        "--epochs",
+        type=int,
+        default=None,
+        help="with --train: training epochs at most (default: ccjax.training.Schedule's, with early stopping)",
     )
     p.add_argument(
         "--json",
@@ -526,6 +575,140 @@ def results_csv(results) -> str:
     return buffer.getvalue()
 
 
+TRAINED_SUFFIX = " trained"
+"""Suffix of a method trained within folds (``evaluate --train``) in the tables and outputs."""
+
+
+def check_folds(args) -> None:
+    """Refuse ``--folds`` below 2, ``--train`` without ``--folds`` and ``--epochs`` without
+    ``--train``, before any work."""
+    if args.folds is not None and (isinstance(args.folds, bool) or args.folds < 2):
+        raise ValueError(f"--folds: expected an integer >= 2 (the number of folds), got {args.folds}")
+    if args.train is not None:
+        if not args.train:
+            raise ValueError("--train: expected comma-separated method labels, got none")
+        if args.folds is None:
+            raise ValueError("--train: needs --folds K (each method is trained on the other folds' images)")
+        if len(set(args.train)) != len(args.train):
+            raise ValueError(f"--train: a label is given twice ({', '.join(args.train)})")
+    if args.epochs is not None:
+        if args.train is None:
+            raise ValueError("--epochs: applies to --train only")
+        if args.epochs < 1:
+            raise ValueError(f"--epochs: expected a positive integer, got {args.epochs}")
+
+
+def trainable_starts(labels, world) -> dict:
+    """``{label: its fit to world}`` for ``evaluate --train``, refusing labels with nothing to learn.
+
+    Raises:
+        ValueError: naming ``--train``, the label and the trainable families.
+    """
+    from ccjax import training
+
+    starts = {}
+    for label in labels:
+        model = fit_cached(label, world)
+        try:
+            training.learnable(model)
+        except ValueError:
+            raise ValueError(
+                f"--train: {label} ({type(model).__name__}) has no learnable parameters; trainable families: "
+                f"{', '.join(training.learnable_types())} (e.g. C-by-C-MMSE, RGB-C-by-C-MMSE, grey-edge-1-6-2)"
+            ) from None
+        starts[label] = model
+    return starts
+
+
+def train_in_folds(args, starts, paths, truth, names, fold_of, masks):
+    """``evaluate --train``: each start trained within the folds (:func:`ccjax.training.cross_validate`,
+    never on the fold it scores) on exactly the inputs evaluate gives it.
+
+    Returns:
+        ``({"<label> trained": [model of fold 0, ...]}, {label: CrossValidation})``.
+    """
+    import dataclasses
+
+    import numpy as np
+
+    from ccjax import training
+
+    schedule = training.Schedule(seed=args.seed)
+    if args.epochs is not None:
+        schedule = dataclasses.replace(schedule, epochs=args.epochs)
+    models, validations = {}, {}
+    for label, start in starts.items():
+        examples, failed = training.read_examples(
+            paths,
+            truth,
+            names,
+            start,
+            preprocessing=args.preprocessing,
+            dark=dark_fraction(args),
+            read_options=read_options(args),
+            masks=masks,
+            progress=not args.no_progress,
+        )
+        del failed  # the evaluation pass reports them
+        assignment = dict(zip(names, fold_of, strict=True))
+        folds = np.array([assignment[name] for name in examples.names])
+        for fold in range(args.folds):
+            trained_on = int(np.sum(folds != fold))
+            if trained_on < 4:
+                raise ValueError(
+                    f"--folds: fold {fold}'s training set (the other folds) has {trained_on} usable images; training "
+                    "needs at least 4 (fewer folds or more images)"
+                )
+        print(
+            f"training {label} within {args.folds} folds on {len(examples)} images (start: its fit to the world)",
+            file=sys.stderr,
+        )
+        validation, fold_models = training.cross_validate(
+            start, examples, folds, schedule, method=label, progress=not args.no_progress
+        )
+        models[label + TRAINED_SUFFIX], validations[label] = fold_models, validation
+    return models, validations
+
+
+def fold_table(results, fold_of) -> str:
+    """The field's statistics (degrees) of every method per fold and pooled."""
+    from ccjax.metrics import FIELD_STATISTICS, summarise
+
+    width = max([24, *(len(method) + 2 for method in results.estimates)])
+    lines = [
+        "angular error (degrees) per fold and pooled",
+        f"{'method':<{width}}{'fold':>7}{'images':>8}" + "".join(f"{name:>9}" for name in FIELD_STATISTICS),
+    ]
+    folds = sorted(set(fold_of.tolist()))
+    for method in results.estimates:
+        errors = results.angular(method)
+        for fold in [*folds, None]:
+            chosen = errors if fold is None else errors[fold_of == fold]
+            if not len(chosen):
+                continue
+            lines.append(
+                f"{method:<{width}}{'pooled' if fold is None else fold:>7}{len(chosen):>8}"
+                + "".join(f"{summarise(chosen, name):9.3f}" for name in FIELD_STATISTICS)
+            )
+    return "\n".join(lines)
+
+
+def training_table(validations) -> str:
+    """What each fold's training did: images trained on and scored, epochs, seconds."""
+    lines = [
+        "training within folds (each fold's model never sees the fold it scores)",
+        f"{'method':<24}{'fold':>5}{'trained on':>12}{'scored':>8}{'epochs':>8}{'best':>6}{'wall s':>9}{'cpu s':>9}",
+    ]
+    for label, validation in validations.items():
+        for result in validation.folds:
+            row = result.summary()
+            lines.append(
+                f"{label:<24}{row['fold']:>5}{row['n_train']:>12}{row['n_test']:>8}{row['epochs']:>8}"
+                f"{row['best_epoch']:>6}{row['train_seconds']:>9.1f}{row['train_cpu_seconds']:>9.1f}"
+            )
+    return "\n".join(lines)
+
+
 def run_evaluate(args) -> int:
     import numpy as np
 
@@ -533,31 +716,65 @@ def run_evaluate(args) -> int:
     from ccjax.experiments import cameras, evaluation
 
     start = time.perf_counter()
-    check_labels(args.methods, args)
+    check_folds(args)
+    check_labels(args.methods + (args.train or []), args)
     for option, path in (("--json", args.json), ("--csv", args.csv)):
         if path:
             check_output_file(path, option)
-    pairs = io.match_ground_truth(io.read_ground_truth(args.ground_truth), args.directory)
-    pairs.sort(key=lambda pair: str(pair[0]))
+    rows = io.read_ground_truth(args.ground_truth)
+    pairs = io.match_ground_truth(rows, args.directory)
+    names = list(rows)
+    assigned = None
+    if args.train:
+        from ccjax import training
+
+        # Folds of training: the CSV's fold column, else seeded; assigned in ground-truth order (as
+        # ``ccjax train --folds``), so the same file and seed give the same folds.
+        try:
+            given = training.read_folds(args.ground_truth)
+            assigned = dict(zip(names, training.assign_folds(names, args.folds, seed=args.seed, given=given)))
+        except ValueError as error:
+            raise ValueError(f"--folds: {error}") from None
+    order = sorted(range(len(pairs)), key=lambda index: str(pairs[index][0]))
+    pairs, names = [pairs[i] for i in order], [names[i] for i in order]
     paths, truth = [p for p, _ in pairs], np.stack([t for _, t in pairs])
     masks = mask_files(paths, args.mask)
     problems = check_images(paths, args)
     world = image_world(args)
+    starts = trainable_starts(args.train, world) if args.train else {}
     check = None
-    if args.camera or args.world != "default" or any(evaluation.world_based(label) for label in args.methods):
+    labels = args.methods + list(starts)
+    if args.camera or args.world != "default" or any(evaluation.world_based(label) for label in labels):
         check = cameras.curve_check(truth, world)
         if not check.passed:
             print(
                 f"warning: {check.message()}; try `ccjax cameras --check {args.ground_truth} --camera NAME`",
                 file=sys.stderr,
             )
-    fold_of = None
-    if args.folds:
+    fold_of, validations = None, {}
+    if assigned is not None:
+        fold_of = np.array([assigned[name] for name in names])
+        models = {label: [fit_cached(label, world)] * args.folds for label in args.methods}
+    elif args.folds is not None:
         fold_of, worlds = evaluation.fold_worlds(world, truth, args.folds)
         models = {label: [fit_cached(label, w) for w in worlds] for label in args.methods}
     else:
         models = {label: [fit_cached(label, world)] for label in args.methods}
     keep = [index for index, path in enumerate(paths) if str(path) not in problems]
+    if args.folds is not None and len(keep) < args.folds:
+        raise ValueError(f"--folds: {args.folds} folds need at least {args.folds} usable images, got {len(keep)}")
+    if starts:
+        assert fold_of is not None  # --train needs --folds (check_folds)
+        trained, validations = train_in_folds(
+            args,
+            starts,
+            [paths[i] for i in keep],
+            truth[keep],
+            [names[i] for i in keep],
+            fold_of[keep],
+            None if masks is None else [masks[i] for i in keep],
+        )
+        models.update(trained)
     results = evaluation.run_images(
         [paths[i] for i in keep],
         models,
@@ -570,18 +787,41 @@ def run_evaluate(args) -> int:
         truth=truth[keep],
         keep_going=True,
     )
-    folds = f"; {args.folds}-fold cross-validation" if args.folds else ""
+    if assigned is not None:
+        source = "the ground truth's fold column" if training.read_folds(args.ground_truth) else f"seed {args.seed}"
+        folds = f"; {args.folds} folds ({source}): {', '.join(args.train)} trained within them, --methods not"
+    elif args.folds is not None:
+        folds = f"; {args.folds}-fold cross-validation"
+    else:
+        folds = ""
     preparation = args.preprocessing or "each method's default"
     print(f"world: {world.name}; preprocessing: {preparation}{folds}")
     if check is not None:
         print(check.message())
     print(results.table(), flush=True)
+    used = {path: index for index, path in enumerate(map(str, paths))}
+    scored_folds = None if fold_of is None else fold_of[[used[path] for path in results.paths]]
+    if scored_folds is not None and len(results.paths):
+        print("\n" + fold_table(results, scored_folds))
+    if validations:
+        print("\n" + training_table(validations))
     bad = bad_images(paths, problems, results.failures)
     if args.json:
-        summary = {label: results.summary(label) for label in args.methods}
+        summary = {label: results.summary(label) for label in models}
         report = {"summary": summary, "images": results.records(), "failures": bad}
         if check is not None:
             report["camera_check"] = {"camera": check.camera, "distance": check.distance, "threshold": check.threshold}
+        if scored_folds is not None:
+            report["folds"] = {
+                "fold_of": dict(zip(results.paths, scored_folds.tolist(), strict=True)),
+                "training": {
+                    label + TRAINED_SUFFIX: [
+                        {**result.summary(), "train_images": result.train_names, "test_images": result.test_names}
+                        for result in validation.folds
+                    ]
+                    for label, validation in validations.items()
+                },
+            }
         write(args.json, json.dumps(report, indent=1))
     if args.csv:
         write(args.csv, results_csv(results))

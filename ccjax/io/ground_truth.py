@@ -1,10 +1,12 @@
 """Ground-truth files: CSV with the header ``image,r,g,b``.
 
 ``image`` is the file name relative to the image folder (its stem also matches), ``r,g,b`` the
-camera RGB of the light (any scale; only its direction is used). Further header columns are
-ignored; a row with more fields than the header, a name given twice, two names that resolve to one
-file (``im0`` and ``im0.png``), and absolute or ``..`` names are errors. A UTF-8 byte-order mark
-(as spreadsheet programs write) is accepted.
+camera RGB of the light (any scale; only its direction is used). The first column may also be
+called ``file`` (the Gehler–Shi files' header is ``File,R,G,B,Fold``). Further header columns are
+ignored (a ``fold`` column is read by :func:`ccjax.training.read_folds`); a row with more fields
+than the header, a name given twice, two names that resolve to one file (``im0`` and ``im0.png``),
+and absolute or ``..`` names are errors. A UTF-8 byte-order mark (as spreadsheet programs write)
+is accepted.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ def _check_name(path: Path, line: int, name: str) -> None:
 
 
 def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read a ground-truth CSV with header ``image,r,g,b`` (camera RGB of the light, any scale).
+    """Read a ground-truth CSV with header ``image,r,g,b`` or ``file,r,g,b`` (camera RGB of the light, any scale).
 
     Arguments:
         path: the CSV file (UTF-8, with or without a byte-order mark).
@@ -60,8 +62,11 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
             fieldnames = reader.fieldnames
         except UnicodeDecodeError as error:
             raise ValueError(f"ground truth: {path} is not UTF-8 text ({error.reason})") from None
-        if fieldnames is None or [f.strip().lower() for f in fieldnames[:4]] != ["image", "r", "g", "b"]:
-            raise ValueError(f"ground truth: {path} must have the header image,r,g,b (got {fieldnames})")
+        header = [f.strip().lower() for f in fieldnames or []][:4]
+        if header[:1] == ["file"]:
+            header[0] = "image"
+        if fieldnames is None or header != ["image", "r", "g", "b"]:
+            raise ValueError(f"ground truth: {path} must have the header image,r,g,b (or file,r,g,b; got {fieldnames})")
         try:
             for row in reader:
                 line = reader.line_num
@@ -70,7 +75,7 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
                         f"ground truth: {path} line {line}: {len(fieldnames) + len(row[None])} fields, "
                         f"the header has {len(fieldnames)}"
                     )
-                row = {k.strip().lower(): v for k, v in row.items()}
+                row = dict(zip(["image", "r", "g", "b"], (row[k] for k in fieldnames[:4]), strict=True))
                 try:
                     rgb = np.array([float(row["r"]), float(row["g"]), float(row["b"])])
                 except (TypeError, ValueError):

@@ -12,6 +12,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 from tqdm.auto import tqdm
 
+from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth
 from ccjax.io.reading import read_image
 from ccjax.preprocessing import DEFAULT_DARK, DEFAULT_PREPROCESSING, Preprocessing, surfaces
@@ -40,6 +41,85 @@ class Examples(eqx.Module):
         indices = np.asarray(indices, np.int64)
         names = tuple(self.names[i] for i in indices) if self.names else ()
         return Examples(self.x[indices], self.mask[indices], self.illuminant[indices], names)
+
+
+def _stack(inputs, masks, input_kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Stack per-image inputs into fixed-shape arrays: images must share one size; surface lists
+    are padded (invalid slots) to the longest one."""
+    if input_kind == "image":
+        shapes = {x.shape for x in inputs}
+        if len(shapes) > 1:
+            raise ValueError(f"images: training an image estimator needs images of one size, got {sorted(shapes)}")
+        return np.stack(inputs), np.stack(masks)
+    size = max(len(m) for m in masks)
+    x = np.zeros((len(inputs), size, 3), np.float32)
+    mask = np.zeros((len(inputs), size), bool)
+    for index, (rgb, valid) in enumerate(zip(inputs, masks)):
+        x[index, : len(rgb)], mask[index, : len(valid)] = rgb, valid
+    return x, mask
+
+
+def read_examples(
+    paths,
+    illuminants,
+    names,
+    model: AbstractEstimator,
+    *,
+    preprocessing: str | Preprocessing | None = None,
+    dark: float = DEFAULT_DARK,
+    read_options: dict | None = None,
+    masks=None,
+    progress: bool = False,
+) -> tuple[Examples, dict[str, str]]:
+    """Training examples of ``model`` from image files: each image is read and given exactly the
+    input ``ccjax evaluate`` gives the model (:func:`ccjax.preprocessing.prepare`), so a model is
+    trained on what it is scored on.
+
+    Arguments:
+        paths: the image files.
+        illuminants: ``(N, 3)`` their ground-truth lights (camera RGB, any scale).
+        names: their names (ground-truth rows), kept in :attr:`Examples.names`.
+        model: the estimator to be trained (its input kind and default preprocessing).
+        preprocessing: a preprocessing for the model (None: its default).
+        dark: the surface lists' dark rule.
+        read_options: keyword arguments of :func:`ccjax.io.read_image`.
+        masks: optional mask file per image (``None`` entries: no mask).
+        progress: show a progress bar.
+
+    Returns:
+        ``(Examples of the images that could be used, {path: reason} for those that could not)``.
+
+    Raises:
+        ValueError: no image could be used, or image inputs of different sizes.
+    """
+    from ccjax.io.reading import read_mask
+    from ccjax.preprocessing import prepare
+
+    paths, names = list(paths), list(names)
+    illuminants = np.asarray(illuminants, np.float32)
+    if not (len(paths) == len(names) == len(illuminants)):
+        raise ValueError(
+            f"paths, names, illuminants: expected one each, got {len(paths)}, {len(names)}, {len(illuminants)}"
+        )
+    if masks is not None and len(masks) != len(paths):
+        raise ValueError(f"masks: expected one entry per image ({len(paths)}), got {len(masks)}")
+    inputs, valid, kept, failures = [], [], [], {}
+    for index, path in enumerate(tqdm(paths, desc="reading", unit="image", disable=not progress, leave=False)):
+        try:
+            image = read_image(path, **(read_options or {}))
+            mask = None if masks is None or masks[index] is None else read_mask(masks[index], image.shape)
+            rgb, usable = prepare(model, image, preprocessing, dark=dark, mask=mask)
+        except (ValueError, OSError) as error:
+            failures[str(path)] = f"{error}" if str(path) in str(error) else f"{path}: {error}"
+            continue
+        inputs.append(np.asarray(rgb, np.float32))
+        valid.append(np.asarray(usable, bool))
+        kept.append(index)
+    if not kept:
+        raise ValueError(f"images: none of the {len(paths)} images could be used for training")
+    x, mask = _stack(inputs, valid, model.input_kind)
+    light = jnp.asarray(illuminants[kept])
+    return Examples(jnp.asarray(x), jnp.asarray(mask), light, tuple(names[i] for i in kept)), failures
 
 
 def load_examples(
@@ -78,17 +158,7 @@ def load_examples(
             rgb, mask = surfaces(image, preprocessing, dark=dark)
             inputs.append(rgb)
             masks.append(mask)
-    if input_kind == "image":
-        shapes = {x.shape for x in inputs}
-        if len(shapes) > 1:
-            raise ValueError(f"images: training an image estimator needs images of one size, got {sorted(shapes)}")
-        x, mask = np.stack(inputs), np.stack(masks)
-    else:
-        size = max(len(m) for m in masks)
-        x = np.zeros((len(inputs), size, 3), np.float32)
-        mask = np.zeros((len(inputs), size), bool)
-        for index, (rgb, valid) in enumerate(zip(inputs, masks)):
-            x[index, : len(rgb)], mask[index, : len(valid)] = rgb, valid
+    x, mask = _stack(inputs, masks, input_kind)
     illuminant = np.stack([light for _, light in pairs]).astype(np.float32)
     names = tuple(truth)
     return Examples(jnp.asarray(x), jnp.asarray(mask), jnp.asarray(illuminant), names)

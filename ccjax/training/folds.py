@@ -77,13 +77,23 @@ def assign_folds(names, k: int, *, seed: int = 0, given: dict[str, int] | None =
 
 @dataclass
 class FoldResult:
-    """One fold: its test examples' errors for the trained and the untrained (start) model."""
+    """One fold: its test examples' errors for the trained and the untrained (start) model.
+
+    Attributes:
+        fold: the fold index.
+        test_names: the examples scored (this fold's).
+        trained_errors, untrained_errors: their angular errors (degrees).
+        log: the training log of this fold's model.
+        train_names: the examples the model was trained on (the other folds', its early-stopping
+            split included): disjoint from ``test_names``.
+    """
 
     fold: int
     test_names: list[str]
     trained_errors: np.ndarray
     untrained_errors: np.ndarray
     log: TrainingLog
+    train_names: list[str] = field(default_factory=list)
 
     def summary(self) -> dict:
         return {
@@ -93,7 +103,10 @@ class FoldResult:
             "trained_mean": float(np.mean(self.trained_errors)),
             "untrained_median": float(np.median(self.untrained_errors)),
             "untrained_mean": float(np.mean(self.untrained_errors)),
+            "n_train": len(self.train_names),
             "train_seconds": self.log.seconds,
+            "train_cpu_seconds": self.log.cpu_seconds,
+            "epochs": len(self.log.heldout_median),
             "best_epoch": self.log.best_epoch,
         }
 
@@ -159,13 +172,15 @@ def cross_validate(
         raise ValueError(f"folds: expected shape ({len(examples)},), got {folds.shape}")
     untrained = angular_errors(model, examples)
     result, models = CrossValidation(method=method), []
+    names = list(examples.names) if examples.names else [str(i) for i in range(len(examples))]
     for fold in np.unique(folds):
         test = np.flatnonzero(folds == fold)
-        train = np.flatnonzero(folds != fold)
+        train = np.flatnonzero(folds != fold)  # never the scored fold (early stopping splits these)
         trained, log = fit_to_examples(model, examples.take(train), schedule, progress=progress)
         errors = angular_errors(trained, examples.take(test))
-        names = [examples.names[i] for i in test] if examples.names else [str(i) for i in test]
-        result.folds.append(FoldResult(int(fold), names, errors, untrained[test], log))
+        result.folds.append(
+            FoldResult(int(fold), [names[i] for i in test], errors, untrained[test], log, [names[i] for i in train])
+        )
         models.append(trained)
     return result, models
 

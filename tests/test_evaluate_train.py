@@ -1,0 +1,182 @@
+"""``ccjax evaluate --folds K --train METHODS`` (issue 15 item 3): each listed method trained within
+the folds, never on the fold it scores; folds from the ground truth's fold column (Gehler–Shi's
+``File,R,G,B,Fold`` header) or seeded; the field's statistics per fold and pooled; clear errors."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import jax
+import numpy as np
+import pytest
+from small_world import small_world
+
+import ccjax.training.folds as fold_module
+from ccjax import cli, images, io, scenes, training
+from ccjax.experiments import evaluation
+
+LABEL = "C-by-C-MMSE"
+TRAINED = f"{LABEL} trained"
+N = 12
+
+
+@pytest.fixture(scope="module")
+def world():
+    return small_world()
+
+
+@pytest.fixture(scope="module")
+def image_set(world, tmp_path_factory):
+    """12 small Mondrians under the small world's lights, with their ground truth."""
+    batch = scenes.sample_mondrians(jax.random.key(5), world, N, height=24, width=24, n_patches=6)
+    folder = tmp_path_factory.mktemp("evaluate_train") / "set"
+    truth = io.write_dataset(folder, np.asarray(batch.image), np.asarray(batch.illuminant))
+    return folder, truth
+
+
+@pytest.fixture
+def setup(tmp_path, monkeypatch, world):
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
+    for module in (images, evaluation):
+        monkeypatch.setattr(module, "cached_world", lambda *a, **k: world)
+    return tmp_path
+
+
+def _evaluate(folder, truth, report, *extra):
+    argv = ["evaluate", str(folder), "--ground-truth", str(truth), "--methods", f"GW,{LABEL}", "--folds", "3"]
+    argv += ["--train", LABEL, "--epochs", "1", "--camera", "Canon EOS 5D Mark II", "--no-progress"]
+    return cli.main([*argv, "--json", str(report), *extra])
+
+
+def _angle(a, b):
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    return np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+
+
+def _stem(path):
+    from pathlib import Path
+
+    return Path(path).name
+
+
+def test_trained_models_never_see_the_fold_they_score(setup, image_set, monkeypatch, capsys):
+    folder, truth = image_set
+    seen = []  # the names of every training set handed to the optimiser, observed from outside
+    original = fold_module.fit_to_examples
+
+    def spy(model, examples, *args, **kwargs):
+        seen.append(set(examples.names))
+        return original(model, examples, *args, **kwargs)
+
+    monkeypatch.setattr(fold_module, "fit_to_examples", spy)
+    assert _evaluate(folder, truth, setup / "r.json") == 0
+    out = capsys.readouterr().out
+    report = json.loads((setup / "r.json").read_text())
+    fold_of = {_stem(path): fold for path, fold in report["folds"]["fold_of"].items()}
+    assert sorted(fold_of) == sorted(io.read_ground_truth(truth)) and len(set(fold_of.values())) == 3
+    # Seeded assignment: the same as ccjax.training.assign_folds on the ground-truth order.
+    names = list(io.read_ground_truth(truth))
+    expected = training.assign_folds(names, 3, seed=0)
+    assert [fold_of[name] for name in names] == expected.tolist()
+    # One training per fold, and each excludes exactly its scored fold.
+    assert len(seen) == 3
+    for fold, trained_on in enumerate(seen):
+        scored = {name for name, f in fold_of.items() if f == fold}
+        assert trained_on == set(names) - scored
+    for record in report["folds"]["training"][TRAINED]:
+        assert set(record["test_images"]) == {name for name, f in fold_of.items() if f == record["fold"]}
+        assert not set(record["train_images"]) & set(record["test_images"])
+        assert len(record["train_images"]) + len(record["test_images"]) == N
+
+    # Per fold and pooled: the printed medians are those of the per-image errors recomputed here
+    # from the printed estimates and the ground-truth file.
+    lights = {name: rgb for name, rgb in io.read_ground_truth(truth).items()}
+    for method in ("GW", LABEL, TRAINED):
+        errors = {
+            _stem(r["path"]): _angle(r["illuminant"], lights[_stem(r["path"])])
+            for r in report["images"]
+            if r["method"] == method
+        }
+        assert len(errors) == N
+        section = out.split("per fold and pooled", 1)[1].split("\n\n", 1)[0]
+        per_fold = {}
+        for line in section.splitlines():
+            match = re.match(rf"{re.escape(method)}\s+(\d+|pooled)\s+(.*)$", line)
+            if match:
+                per_fold[match.group(1)] = [float(v) for v in match.group(2).split()]
+        assert sorted(per_fold) == ["0", "1", "2", "pooled"], out
+        for fold in ("0", "1", "2"):
+            chosen = [e for name, e in errors.items() if fold_of[name] == int(fold)]
+            assert per_fold[fold][0] == len(chosen)
+            assert per_fold[fold][2] == pytest.approx(np.median(chosen), abs=1.5e-3)  # median column
+        assert per_fold["pooled"][0] == N
+        assert per_fold["pooled"][2] == pytest.approx(np.median(list(errors.values())), abs=1.5e-3)
+    assert "training within folds" in out
+
+
+def test_fold_column_of_the_ground_truth_is_honoured(setup, image_set, capsys):
+    folder, truth = image_set
+    rows = io.read_ground_truth(truth)
+    labels = [7, 3, 5]  # any integers; numbered in sorted order: 3 -> 0, 5 -> 1, 7 -> 2
+    # The Gehler–Shi header (File,R,G,B,Fold) is accepted.
+    lines = ["File,R,G,B,Fold"] + [
+        f"{name},{r},{g},{b},{labels[index % 3]}" for index, (name, (r, g, b)) in enumerate(rows.items())
+    ]
+    gehler = setup / "gt_fold.csv"
+    gehler.write_text("\n".join(lines) + "\n")
+    assert _evaluate(folder, gehler, setup / "r.json") == 0
+    out = capsys.readouterr().out
+    assert "fold column" in out
+    report = json.loads((setup / "r.json").read_text())
+    fold_of = {_stem(path): fold for path, fold in report["folds"]["fold_of"].items()}
+    for index, name in enumerate(rows):
+        assert fold_of[name] == sorted(labels).index(labels[index % 3])
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--folds", "3", "--train", "GW"], "--train: GW"),
+        (["--folds", "1", "--train", LABEL], "--folds: expected an integer >= 2"),
+        (["--folds", "0"], "--folds: expected an integer >= 2"),
+        (["--train", LABEL], "--train: needs --folds"),
+        (["--folds", "13", "--train", LABEL], "--folds:"),
+        (["--folds", "4", "--train", f"{LABEL},{LABEL}"], "--train: a label is given twice"),
+        (["--folds", "3", "--epochs", "2"], "--epochs: applies to --train only"),
+        (["--folds", "3", "--train", "NO-SUCH-METHOD"], "NO-SUCH-METHOD"),
+    ],
+)
+def test_errors_name_the_argument(setup, image_set, capsys, extra, message):
+    folder, truth = image_set
+    argv = ["evaluate", str(folder), "--ground-truth", str(truth), "--methods", "GW", "--no-progress"]
+    assert cli.main([*argv, "--camera", "Canon EOS 5D Mark II", *extra]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_fewer_images_in_the_training_folds_than_training_needs(setup, image_set, capsys):
+    folder, truth = image_set
+    argv = ["evaluate", str(folder), "--ground-truth", str(truth), "--methods", "GW", "--no-progress"]
+    # 12 folds of 12 images: every training set has 11 images, enough; 2 images per fold with a
+    # 3-image set would leave 1, too few (at least 4 are needed to hold some out).
+    rows = list(io.read_ground_truth(truth).items())[:3]
+    small = setup / "three.csv"
+    small.write_text("image,r,g,b\n" + "".join(f"{n},{r},{g},{b}\n" for n, (r, g, b) in rows))
+    argv = ["evaluate", str(folder), "--ground-truth", str(small), "--methods", "GW", "--no-progress"]
+    status = cli.main([*argv, "--camera", "Canon EOS 5D Mark II", "--folds", "3", "--train", LABEL])
+    assert status == 2
+    assert "training needs at least 4" in capsys.readouterr().err
+
+
+def test_folds_alone_keeps_the_fold_worlds(setup, image_set, capsys):
+    folder, truth = image_set
+    argv = ["evaluate", str(folder), "--ground-truth", str(truth), "--methods", "AVE-ILLUM", "--no-progress"]
+    assert cli.main([*argv, "--camera", "Canon EOS 5D Mark II", "--folds", "3", "--json", str(setup / "r.json")]) == 0
+    out = capsys.readouterr().out
+    assert "3-fold cross-validation" in out and "trained" not in out
+    report = json.loads((setup / "r.json").read_text())
+    # Image i (in path order) is in fold i mod 3, and AVE-ILLUM of fold k averages the lights
+    # nearest the other folds' ground truths (evaluation.fold_worlds), not every fold's.
+    fold_of = report["folds"]["fold_of"]
+    assert list(fold_of.values()) == [i % 3 for i in range(N)]
+    assert report["folds"]["training"] == {}
