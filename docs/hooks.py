@@ -81,7 +81,10 @@ def _escape(text: str) -> str:
 def _cell_code(text: str) -> str:
     # In a table cell a pipe separates columns even inside a code span (and a backslash before it
     # stays visible there): write the code as HTML with the pipe as a character reference.
-    return "<code>" + html.escape(text).replace("|", "&#124;") + "</code>"
+    # Markdown still reads inline HTML's content: brackets become character references too, or
+    # ``[FL-][STD-|SPEC-]`` is taken for a reference link.
+    escaped = html.escape(text).replace("|", "&#124;").replace("[", "&#91;").replace("]", "&#93;")
+    return "<code>" + escaped + "</code>"
 
 
 # -- the estimator catalogue ---------------------------------------------------------------------
@@ -184,7 +187,10 @@ def _catalogue_entry(entry, family: dict) -> list[str]:
             f"ok {ok['8']:.1%} and {ok['64']:.1%}."
         )
     if speed:
-        out.append(f"* **Speed**: {speed['8']:,.0f} scenes/s at 8 surfaces, {speed['64']:,.0f} at 64.")
+        load = family.get("load_average")
+        # The machine's other load divides the wall-clock speed: say what it was.
+        during = "" if load is None else f" (1-minute load average {load:.1f} on the machine while measured)"
+        out.append(f"* **Speed**: {speed['8']:,.0f} scenes/s at 8 surfaces, {speed['64']:,.0f} at 64{during}.")
     if "note" in family:
         out.append(f"* **Not measured**: {family['note']}.")
     elif not family:

@@ -180,6 +180,7 @@ def catalogue(args) -> None:
                         walls.append(time.perf_counter() - start)
                     speed[str(n)] = SPEED_BATCH[n] / float(np.median(walls))
                 record["scenes_per_second"] = speed
+                record["load_average"] = os.getloadavg()[0]  # other load divides the wall-clock speed
             except Exception as error:  # a family that cannot run is reported as such, never hidden
                 record["note"] = f"failed: {type(error).__name__}: {error}"
         families.append(record)
