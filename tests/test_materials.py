@@ -226,7 +226,7 @@ def test_fluorescent_weights():
     assert matched.fluorescent == pytest.approx(0.15 * 1995 / (0.85 * 9))
     for bad in ({"fraction": 1.0}, {"multiplier": -1.0}, {"multiplier": None}):
         with pytest.raises(ValueError):
-            materials.fluorescent_weights(1995, **bad)
+            materials.fluorescent_weights(1995, **bad)  # pyright: ignore[reportArgumentType]  (bad input on purpose)
 
 
 def test_models_are_pytrees(surfaces):
