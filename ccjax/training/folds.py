@@ -14,7 +14,8 @@ import numpy as np
 from ccjax._cache import FORMAT_VERSION, read_model_metadata, save_model
 from ccjax._cache import load_model as load_leaves
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.training.data import Examples, load_examples
+from ccjax.io.ground_truth import match_ground_truth, read_ground_truth
+from ccjax.training.data import Examples, read_examples
 from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples
 
 
@@ -258,7 +259,8 @@ def train_on_images(
     """Train the estimator ``method`` on a folder of images with ground truth.
 
     The start is ``method`` fitted to ``World.default(camera)`` (the physics: e.g. the Colour by
-    Correlation matrix from the camera's curves); its learnable parameters are trained
+    Correlation matrix from the camera's curves); each image gets the input ``ccjax evaluate`` gives
+    the method (:func:`ccjax.training.read_examples`); its learnable parameters are trained
     (:func:`fit_to_examples`). With ``folds``, it is first cross-validated (folds from the CSV's
     ``fold`` column when present, else a seeded random assignment); the returned model is then
     trained on every image.
@@ -282,7 +284,13 @@ def train_on_images(
 
     schedule = schedule or Schedule()
     start = fit_cached(method, World.default(camera, seed=world_seed))
-    examples = load_examples(directory, ground_truth, start.input_kind, progress=progress)
+    # The inputs ``ccjax evaluate`` gives the method (its default preprocessing), as ``evaluate --train``.
+    truth = read_ground_truth(ground_truth)
+    pairs = match_ground_truth(truth, directory)
+    lights = np.stack([light for _, light in pairs])
+    examples, failures = read_examples([path for path, _ in pairs], lights, list(truth), start, progress=progress)
+    if failures:
+        raise ValueError(f"{len(failures)} images cannot be used for training:\n  " + "\n  ".join(failures.values()))
     validation = None
     if folds is not None:
         assignment = assign_folds(examples.names, folds, seed=fold_seed, given=read_folds(ground_truth))
