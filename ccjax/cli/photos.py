@@ -697,15 +697,21 @@ def training_table(validations) -> str:
     """What each fold's training did: images trained on and scored, epochs, seconds."""
     lines = [
         "training within folds (each fold's model never sees the fold it scores)",
-        f"{'method':<24}{'fold':>5}{'trained on':>12}{'scored':>8}{'epochs':>8}{'best':>6}{'wall s':>9}{'cpu s':>9}",
+        f"{'method':<24}{'fold':>5}{'trained on':>12}{'scored':>8}{'epochs':>8}{'best':>6}{'wall s':>9}{'cpu s':>9}"
+        f"{'stop-split median: start':>26}{'best':>7}",
     ]
     for label, validation in validations.items():
         for result in validation.folds:
-            row = result.summary()
+            row, log = result.summary(), result.log
             lines.append(
                 f"{label:<24}{row['fold']:>5}{row['n_train']:>12}{row['n_test']:>8}{row['epochs']:>8}"
                 f"{row['best_epoch']:>6}{row['train_seconds']:>9.1f}{row['train_cpu_seconds']:>9.1f}"
+                f"{log.initial_median:>26.3f}{min([log.initial_median, *log.heldout_median]):>7.3f}"
             )
+    lines.append(
+        "(trained on: the other folds' images, an early-stopping split of them included; stop-split median: "
+        "angular error on that split before training and at the best epoch)"
+    )
     return "\n".join(lines)
 
 
@@ -816,7 +822,12 @@ def run_evaluate(args) -> int:
                 "fold_of": dict(zip(results.paths, scored_folds.tolist(), strict=True)),
                 "training": {
                     label + TRAINED_SUFFIX: [
-                        {**result.summary(), "train_images": result.train_names, "test_images": result.test_names}
+                        {
+                            **result.summary(),
+                            "heldout_median_per_epoch": result.log.heldout_median,
+                            "train_images": result.train_names,
+                            "test_images": result.test_names,
+                        }
                         for result in validation.folds
                     ]
                     for label, validation in validations.items()
