@@ -8,20 +8,24 @@ not depend on its chunk size or on how the scene axis is sharded over devices.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
 from ccjax import metrics
+from ccjax._cache import cached_model, code_fingerprint, content_key
 from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
+from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.experiments.reports import Column, Report
-from ccjax.scenes import SceneTables, resolve_options, sample_batch, scene_keys
+from ccjax.scenes import Scenes, SceneTables, resolve_options, sample_batch, scene_keys
 from ccjax.world import World
 
 STATISTICS = ("angular", "rg", "rgb", "brightness", "map_rg", "map_rgb")
@@ -105,9 +109,77 @@ def sampling_error(errors, summary: str = "rms") -> float:
 
 
 @eqx.filter_jit
-def _chunk(models, tables, keys, n_surfaces, specular, noise, clip):
+def _sample(tables, keys, n_surfaces, size, specular, noise, clip) -> Scenes:
+    """Scenes of ``n_surfaces`` surfaces, padded with masked-out surfaces to ``size``."""
     scenes = sample_batch(keys, tables, n_surfaces, specular, noise, clip)
-    return [scene_errors(model, scenes, tables.canonical_white) for model in models]
+    pad = size - n_surfaces
+    return Scenes(
+        rgb=jnp.pad(scenes.rgb, ((0, 0), (0, pad), (0, 0))),
+        mask=jnp.pad(scenes.mask, ((0, 0), (0, pad))),
+        illuminant=scenes.illuminant,
+        canonical_rgb=jnp.pad(scenes.canonical_rgb, ((0, 0), (0, pad), (0, 0))),
+    )
+
+
+@eqx.filter_jit
+def _errors(models, scenes, canonical_white):
+    return [scene_errors(model, scenes, canonical_white) for model in models]
+
+
+def _grid_options(tree, found: list[GridOptions]) -> list[GridOptions]:
+    """Every :class:`GridOptions` held by a model (static fields included), depth first."""
+    if isinstance(tree, GridOptions):
+        found.append(tree)
+    elif isinstance(tree, eqx.Module):
+        for item in dataclasses.fields(tree):
+            _grid_options(getattr(tree, item.name, None), found)
+    elif isinstance(tree, (list, tuple)):
+        for item in tree:
+            _grid_options(item, found)
+    return found
+
+
+def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -> dict[int, int]:
+    """The scene size each surface count is padded to, so that several counts share one compiled
+    program (compilation is most of a cold sweep's time) and every estimate stays what it is
+    unpadded.
+
+    Padding adds masked-out surfaces, which no estimator uses; what could change is a Python
+    branch on the scene's size. The gamut engine has such branches (at its observation budgets,
+    :class:`~ccjax.estimators.gamut.engine.GridOptions`: ``fine_observations``,
+    ``locate_observations``, ``large_scene``, ``exact_scene``), so counts are grouped between
+    consecutive budgets and padded to the largest count of their group: a padded scene takes every
+    branch its unpadded self takes. Counts above every budget are not padded (the kernel's cost
+    grows with the size). Without such models nothing is padded.
+
+    Arguments:
+        surfaces: the sweep's surface counts.
+        models: its fitted models.
+
+    Returns:
+        ``count -> padded size`` (``>= count``).
+    """
+    limits = sorted(
+        {
+            limit
+            for model in models
+            for options in _grid_options(model, [])
+            for limit in (
+                options.fine_observations,
+                options.locate_observations,
+                options.large_scene,
+                options.exact_scene,
+            )
+            if limit > 0
+        }
+    )
+    if not limits:
+        return {n: n for n in surfaces}
+    groups: dict[int, list[int]] = {}
+    for n in surfaces:
+        above = [limit for limit in limits if limit >= n]
+        groups.setdefault(above[0] if above else -n, []).append(n)
+    return {n: max(group) for group in groups.values() for n in group}
 
 
 @dataclass
@@ -120,12 +192,16 @@ class SweepResult:
         n_scenes: scenes per number of surfaces.
         errors: ``errors[method][surfaces][statistic] -> (n_scenes,)`` NumPy arrays (unit scale),
             with ``"ok"`` booleans; statistics that do not apply to a method are absent.
+        fits_from_cache, fits_fitted: how many labels were read from the disk cache of fits
+            (:func:`fit_label`) and how many were fitted (methods given as models count in neither).
     """
 
     methods: list[str]
     surfaces: list[int]
     n_scenes: int
     errors: dict = field(default_factory=dict)
+    fits_from_cache: int = 0
+    fits_fitted: int = 0
 
     def value(self, method: str, surfaces: int, statistic: str, summary: str = "rms") -> float:
         """A summary of one method's per-scene errors at one surface count.
@@ -380,12 +456,32 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
         )
 
 
-def resolve_methods(world: World, methods) -> list[tuple[str, AbstractEstimator]]:
-    """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted).
+def fit_label(label: str, world: World) -> tuple[AbstractEstimator, bool]:
+    """Fit ``label`` to ``world`` through the disk cache of fits (``<cache>/fits``).
+
+    The key is the label, the world's content and :func:`ccjax._cache.code_fingerprint` (so an
+    edited fit is refitted); models that cannot be cached are fitted every time.
+
+    Arguments:
+        label: a registry label.
+        world: the world.
+
+    Returns:
+        ``(model, from_cache)``.
+    """
+    registry.lookup(label)  # unknown labels fail before anything is hashed
+    key = content_key("fit", label, world, code_fingerprint())
+    return cached_model("fits", key, lambda: registry.fit(label, world), {"label": label, "world": world.name})
+
+
+def resolve_methods(world: World, methods, counts: dict | None = None) -> list[tuple[str, AbstractEstimator]]:
+    """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted,
+    through the disk cache of fits, :func:`fit_label`).
 
     Arguments:
         world: the world labels are fitted to.
         methods: labels, fitted surface estimators, or ``(label, estimator)`` pairs.
+        counts: if given, ``"cached"`` and ``"fitted"`` are incremented per label.
 
     Returns:
         The pairs, in order.
@@ -396,7 +492,11 @@ def resolve_methods(world: World, methods) -> list[tuple[str, AbstractEstimator]
     resolved = []
     for method in methods:
         if isinstance(method, str):
-            resolved.append((method, registry.fit(method, world)))
+            model, hit = fit_label(method, world)
+            if counts is not None:
+                name = "cached" if hit else "fitted"
+                counts[name] = counts.get(name, 0) + 1
+            resolved.append((method, model))
         elif isinstance(method, tuple) and len(method) == 2 and isinstance(method[1], AbstractEstimator):
             resolved.append(method)
         elif isinstance(method, AbstractEstimator):
@@ -449,7 +549,8 @@ def sweep(
     if not surfaces or any(not 1 <= n <= n_reflectances for n in surfaces):
         raise ValueError(f"n_surfaces: expected integers in [1, {n_reflectances}], got {list(n_surfaces)}")
     specular, noise = resolve_options(specular, noise, clip)
-    resolved = resolve_methods(world, methods)
+    counts: dict[str, int] = {}
+    resolved = resolve_methods(world, methods, counts)
     labels = [label for label, _ in resolved]
     models = [model for _, model in resolved]
     key = jax.random.key(0) if key is None else key
@@ -462,10 +563,18 @@ def sweep(
         sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(mesh.axis_names[0]))
         n_devices = mesh.devices.size
 
-    result = SweepResult(methods=labels, surfaces=surfaces, n_scenes=n_scenes)
+    sizes = padded_sizes(surfaces, models)
+    result = SweepResult(
+        methods=labels,
+        surfaces=surfaces,
+        n_scenes=n_scenes,
+        fits_from_cache=counts.get("cached", 0),
+        fits_fitted=counts.get("fitted", 0),
+    )
     plan = []
     for n in surfaces:
-        size = chunk_size or max(64, min(16384, _SURFACES_PER_CHUNK // n))
+        # The chunk size follows the padded size, so counts padded alike share one program.
+        size = chunk_size or max(64, min(16384, _SURFACES_PER_CHUNK // sizes[n]))
         size = min(size, n_scenes)
         size = int(math.ceil(size / n_devices) * n_devices)
         plan.append((n, size, int(math.ceil(n_scenes / size))))
@@ -477,11 +586,12 @@ def sweep(
         collected: list[list[dict]] = []
         for index in range(chunks):
             # Every chunk has the same shape (the last is padded with later scenes of the stream
-            # and trimmed), so each (surfaces, chunk size) compiles once.
+            # and trimmed), so the estimators compile once per (padded size, chunk size).
             keys = scene_keys(stream, index * size, size)
             if sharding is not None:
                 keys = jax.device_put(keys, sharding)
-            out = _chunk(models, tables, keys, n, specular, noise, clip)
+            scenes = _sample(tables, keys, n, sizes[n], specular, noise, clip)
+            out = _errors(models, scenes, tables.canonical_white)
             collected.append(jax.device_get(out))
             bar.update()
         for position, (label, model) in enumerate(resolved):

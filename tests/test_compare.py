@@ -1,0 +1,107 @@
+"""``ccjax compare``: fits from the disk cache on a second run, and padded scene sizes (one compiled
+program for several surface counts) that leave every estimate as it is unpadded."""
+
+from __future__ import annotations
+
+import re
+
+import equinox as eqx
+import jax
+import numpy as np
+import pytest
+
+from ccjax import _cache, cli
+from ccjax.estimators.gamut.engine import GridOptions
+from ccjax.experiments import sweeps
+
+
+def _fits_line(out: str) -> tuple[int, int]:
+    match = re.search(r"^fits: (\d+) from cache, (\d+) fitted", out, re.MULTILINE)
+    assert match, out
+    return int(match.group(1)), int(match.group(2))
+
+
+def test_second_compare_reads_its_fits_from_the_cache(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
+    argv = ["compare", "--scenes", "20", "--surfaces", "4,8", "--methods", "GW,ECRULE-MV", "--no-progress"]
+    assert cli.main(argv) == 0
+    first = capsys.readouterr().out
+    assert _fits_line(first) == (0, 2)
+    assert len(list((tmp_path / "fits").glob("*.npz"))) == 2
+    assert cli.main(argv) == 0
+    second = capsys.readouterr().out
+    assert _fits_line(second) == (2, 0)
+    # The cached fits give the same table (everything after the fits line).
+    assert first.split("\n", 2)[2] == second.split("\n", 2)[2]
+
+
+def test_cached_model_round_trip_and_refusals(tmp_path, monkeypatch, default_world):
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
+    model, hit = sweeps.fit_label("ECRULE-MV", default_world)
+    again, hit_again = sweeps.fit_label("ECRULE-MV", default_world)
+    assert (hit, hit_again) == (False, True)
+    assert jax.tree_util.tree_structure(model) == jax.tree_util.tree_structure(again)
+    for a, b in zip(jax.tree_util.tree_leaves(model), jax.tree_util.tree_leaves(again), strict=True):
+        assert type(a) is type(b) and a.dtype == b.dtype
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+    class Holder(eqx.Module):
+        function: object = eqx.field(static=True)
+
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return Holder(function=lambda x: x)
+
+    # A function cannot be stored (nor a class defined in a function): computed each time.
+    assert _cache.cached_model("fits", "k" * 24, compute)[1] is False
+    assert _cache.cached_model("fits", "k" * 24, compute)[1] is False
+    assert len(calls) == 2
+    # A damaged entry is recomputed, not trusted.
+    path = next((tmp_path / "fits").glob("*.json"))
+    path.write_text("{not json")
+    assert sweeps.fit_label("ECRULE-MV", default_world)[1] is False
+
+
+def test_padded_sizes_never_cross_an_engine_budget(default_world):
+    options = GridOptions()
+    budgets = (options.fine_observations, options.locate_observations, options.large_scene)
+    model = sweeps.fit_label("ECRULE-MV", default_world)[0]
+    surfaces = [1, 4, 8, 16, 32, 33, 48, 64, 128, 256, 1024]
+    sizes = sweeps.padded_sizes(surfaces, [model])
+    for n, size in sizes.items():
+        assert size >= n
+        for budget in budgets:
+            assert (n <= budget) == (size <= budget), (n, size, budget)
+    assert sizes[4] == sizes[8] == sizes[16] == 32 and sizes[64] == 128
+    assert sizes[256] == 256 and sizes[1024] == 1024
+    # Without a model that branches on the scene size nothing is padded.
+    assert sweeps.padded_sizes([4, 8], []) == {4: 4, 8: 8}
+
+
+@pytest.mark.parametrize(
+    "methods",
+    [
+        ("GW", "shades-of-grey-p6", "RETINEX", "C-by-C-MMSE"),
+        # the gamut engine branches on the scene size (compiles for 40 s under load: slow)
+        pytest.param(("ECRULE-MV", "ND-ECRULE-MV"), marks=pytest.mark.slow),
+    ],
+)
+def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path, methods):
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
+    key = jax.random.key(3)
+    padded = sweeps.sweep(default_world, list(methods), (4, 8), 24, key, progress=False)
+    monkeypatch.setattr(sweeps, "padded_sizes", lambda surfaces, models: {n: n for n in surfaces})
+    plain = sweeps.sweep(default_world, list(methods), (4, 8), 24, key, progress=False)
+    for method in methods:
+        for n in (4, 8):
+            for name, value in plain.errors[method][n].items():
+                got = padded.errors[method][n][name]
+                if name in ("ok", "status"):
+                    np.testing.assert_array_equal(got, value)
+                else:
+                    # float32 sums over a longer (zero-padded) axis: a few ulps at most; the angle
+                    # (degrees, through arccos) amplifies them to ~2e-6 degrees.
+                    atol = 1e-5 if name == "angular" else 1e-7
+                    np.testing.assert_allclose(got, value, rtol=1e-6, atol=atol, err_msg=f"{method} {n} {name}")
