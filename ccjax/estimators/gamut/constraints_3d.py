@@ -182,8 +182,11 @@ def _streamed_argmax(score, q, usable, width: int, chunk: int) -> Int[Array, " M
         best, index = carry
         first, qc, uc = xs
         values = score(qc, uc)
-        at = jnp.argmax(values, axis=0)
-        value = jnp.take_along_axis(values, at[None], axis=0)[0]
+        # max, then the first index reaching it: argmax's answer with two plain reductions
+        # (XLA's CPU argmax is a variadic reduce that does not vectorise: 10x slower here).
+        value = jnp.max(values, axis=0)
+        rows = jnp.arange(values.shape[0], dtype=jnp.int32)[:, None]
+        at = jnp.min(jnp.where(values == value[None], rows, values.shape[0]), axis=0)
         better = value > best
         return (jnp.where(better, value, best), jnp.where(better, first + at, index)), None
 
