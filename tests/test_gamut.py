@@ -510,3 +510,33 @@ def test_streamed_reduction_equals_one_chunk(default_world):
         np.testing.assert_allclose(
             np.asarray(outs[0][name].illuminant), np.asarray(outs[1][name].illuminant), rtol=1e-6, err_msg=name
         )
+
+
+@pytest.mark.slow
+def test_relaxed_scenes_equal_the_unreduced_engine(default_world):
+    """Pruning observations is exact only at relaxation level 0 (the normalised violation of a
+    relaxed scene is not a linear function of the observation), so on scenes that relax the
+    default engine (support-point reduction of scenes above ``fine_observations``) must give the
+    unreduced engine's answer (``exact_scene`` above the scene size: every observation in the fine
+    stage), selector by selector: same status, same relaxation level, same illuminant."""
+    scenes = sample(jax.random.key(45), default_world, 96, 128)
+    run = _runner()
+    for constraint in ("CRULE", "ECRULE"):
+        pruned = gamut.fit(default_world, constraint=constraint)
+        full = gamut.fit(default_world, constraint=constraint, options=engine.GridOptions(exact_scene=10**6))
+        assert pruned.options == engine.GridOptions() and scenes.rgb.shape[1] > pruned.options.fine_observations
+        out_pruned, out_full = run(pruned, scenes.rgb, scenes.mask), run(full, scenes.rgb, scenes.mask)
+        for name, estimate in out_full.items():
+            relaxed = np.asarray(estimate.status) == Status.RELAXED
+            assert relaxed.sum() >= 5, (constraint, name, int(relaxed.sum()))
+            other = out_pruned[name]
+            np.testing.assert_array_equal(np.asarray(other.status)[relaxed], np.asarray(estimate.status)[relaxed])
+            np.testing.assert_array_equal(
+                np.asarray(other.relaxation)[relaxed], np.asarray(estimate.relaxation)[relaxed]
+            )
+            np.testing.assert_allclose(
+                np.asarray(other.illuminant)[relaxed],
+                np.asarray(estimate.illuminant)[relaxed],
+                rtol=1e-5,
+                err_msg=f"{constraint}-{name}",
+            )
