@@ -11,10 +11,14 @@ Prints, on World.barnard1999 with compiled (warm) functions, in one run:
   core), and the ratios ccjax CRULE-AVE / oracle, wall and CPU-normalised;
 * a real-image-sized case: 64x64 Mondrian images (16 surfaces in 16x16 tiles) through the default
   preprocessing (ave5 block averages, padded surface lists), scenes/s;
-* peak resident memory after a chunked ECRULE-SCWIA-12 sweep at 64 surfaces (bounded by the chunk).
+* peak resident memory after a chunked ECRULE-SCWIA-12 sweep at 64 surfaces (bounded by the chunk);
+* with ``--extended`` (issue 13): the extended labels (SP-, MET-, FL-, SP-ND-, ND-ECRULE-SCWIA-N)
+  beside their base method (the label without its extension prefix) at 8 and 64 surfaces, with the
+  ratio of their CPU-normalised throughputs (acceptance: within 2x).
 
 Usage: python benchmarks/gamut.py [--repeats 3] [--surfaces 8,64,256,1024] [--oracle-scenes 100]
-       [--sweep-scenes 100000]
+       [--sweep-scenes 100000] [--extended] [--extended-surfaces 8,64]
+       (``--surfaces ''`` skips the main table)
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
+import re
 import resource
 import sys
 import time
@@ -32,7 +37,7 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 
-import gamut_oracle as oracle
+import gamut_oracle as oracle  # pyright: ignore[reportMissingImports]  (tests/ on sys.path above)
 
 from ccjax import experiments, preprocessing, scenes
 from ccjax.estimators import registry
@@ -41,6 +46,13 @@ from ccjax.io.reading import LinearImage
 from ccjax.world import World
 
 LABELS = ("CRULE-AVE", "ECRULE-MV", "ECRULE-SCWIA-12")
+EXTENDED = (
+    "SP-ECRULE-SCWIA-12",
+    "MET-ECRULE-SCWIA-12",
+    "FL-ECRULE-SCWIA-12",
+    "SP-ND-ECRULE-SCWIA-6",
+    "ND-ECRULE-SCWIA-12",
+)
 BATCH = {8: 4096, 64: 1024, 256: 256, 1024: 128}
 
 
@@ -81,6 +93,40 @@ def _oracle(A, b, white, rgb, mask, count):
     return time.perf_counter() - wall, time.process_time() - cpu
 
 
+def _base_label(label: str) -> str:
+    """The method without its canonical-gamut extension prefix: SP-ND-ECRULE-SCWIA-6 -> ECRULE-SCWIA-6."""
+    match = re.search(r"(?:^|-)(E?CRULE-.*)$", label)
+    if match is None:
+        raise ValueError(f"--extended-labels: {label!r} is not a CRULE/ECRULE label")
+    return match.group(1)
+
+
+def _extended(world, labels, surfaces, repeats, cores):
+    """Throughput of each extended label beside its base method (issue 13: within 2x)."""
+    bases = sorted({_base_label(label) for label in labels})
+    models = {label: registry.fit(label, world) for label in [*bases, *labels]}
+    print(f"extended labels beside their base method (median of {repeats} warm runs):")
+    for n in surfaces:
+        print(f"-- {n} surfaces, {_load()}")
+        batch = scenes.sample(jax.random.key(1000 + n), world, BATCH[n], n)
+        cpu_rates = {}
+        for label in [*bases, *labels]:
+            model = models[label]
+            jax.block_until_ready(_estimate(model, batch.rgb, batch.mask))
+            wall, cpu = _timed(lambda model=model, batch=batch: _estimate(model, batch.rgb, batch.mask), repeats)
+            cpu_rates[label] = BATCH[n] / cpu * cores
+            line = (
+                f"  {label:<22}{n:>6} surfaces: {BATCH[n] / wall:>8.0f} scenes/s wall, "
+                f"{cpu_rates[label]:>8.0f} scenes/s cpu"
+            )
+            if label in labels:
+                base = _base_label(label)
+                ratio = cpu_rates[base] / cpu_rates[label]
+                verdict = "ok" if ratio <= 2.0 else "MISS"
+                line += f"  ({base} / this = {ratio:.2f}x per CPU-second: {verdict}, must be <= 2)"
+            print(line, flush=True)
+
+
 def _mondrian_images(world, count, key):
     """``count`` 64x64 linear images of 16 surfaces in 16x16 tiles, as surface lists through the
     default preprocessing (ave5 block averages, padded)."""
@@ -95,15 +141,21 @@ def _mondrian_images(world, count, key):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--surfaces", default="8,64,256,1024")
     parser.add_argument("--labels", default=",".join(LABELS))
     parser.add_argument("--oracle-scenes", type=int, default=100)
     parser.add_argument("--images", type=int, default=256, help="64x64 images of the image case (0: skip)")
     parser.add_argument("--sweep-scenes", type=int, default=100_000, help="scenes of the memory sweep (0: skip)")
+    parser.add_argument("--extended", action="store_true", help="also the extended labels beside their base method")
+    parser.add_argument("--extended-labels", default=",".join(EXTENDED))
+    parser.add_argument("--extended-surfaces", default="8,64")
     args = parser.parse_args()
-    surfaces = [int(n) for n in args.surfaces.split(",")]
+    surfaces = [int(n) for n in args.surfaces.split(",") if n]
+    for n in surfaces + [int(n) for n in args.extended_surfaces.split(",") if n]:
+        if n not in BATCH:
+            raise ValueError(f"--surfaces: each count must be one of {sorted(BATCH)}, got {n}")
     labels = args.labels.split(",")
     cores = os.cpu_count() or 1
 
@@ -159,6 +211,10 @@ def main() -> None:
                 f"  {label:<16} 64x64 images: {args.images / wall:>8.0f} images/s wall, "
                 f"{args.images / cpu * cores:>8.0f} images/s cpu"
             )
+
+    if args.extended:
+        extended_surfaces = [int(n) for n in args.extended_surfaces.split(",") if n]
+        _extended(world, args.extended_labels.split(","), extended_surfaces, args.repeats, cores)
 
     if args.sweep_scenes:
         label = "ECRULE-SCWIA-12"
