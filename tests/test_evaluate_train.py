@@ -181,6 +181,27 @@ def test_folds_alone_keeps_the_fold_worlds(setup, image_set, capsys):
     assert report["folds"]["training"] == {}
 
 
+def test_folds_alone_follow_the_fold_column(setup, image_set, capsys):
+    folder, truth = image_set
+    rows = io.read_ground_truth(truth)
+    # A published split, unlike i mod 3: the first four images in fold 5, the rest alternate 1, 9
+    # (numbered in sorted order: 1 -> 0, 5 -> 1, 9 -> 2).
+    labels = [5 if index < 4 else (1, 9)[index % 2] for index in range(len(rows))]
+    lines = ["File,R,G,B,Fold"] + [
+        f"{name},{r},{g},{b},{labels[index]}" for index, (name, (r, g, b)) in enumerate(rows.items())
+    ]
+    split = setup / "gt_split.csv"
+    split.write_text("\n".join(lines) + "\n")
+    argv = ["evaluate", str(folder), "--ground-truth", str(split), "--methods", "AVE-ILLUM", "--no-progress"]
+    assert cli.main([*argv, "--camera", "Canon EOS 5D Mark II", "--folds", "3", "--json", str(setup / "r.json")]) == 0
+    assert "3-fold cross-validation (the ground truth's fold column)" in capsys.readouterr().out
+    fold_of = {
+        _stem(path): fold for path, fold in json.loads((setup / "r.json").read_text())["folds"]["fold_of"].items()
+    }
+    for index, name in enumerate(rows):
+        assert fold_of[name] == (1, 5, 9).index(labels[index])
+
+
 @pytest.mark.slow
 def test_issue15_acceptance_on_the_documented_generator(tmp_path):
     """Issue 15's acceptance: the documented generator's 1,500 images, ``evaluate --folds 3 --train
@@ -207,3 +228,13 @@ def test_issue15_acceptance_on_the_documented_generator(tmp_path):
     assert [int(row[2]) for row in rows] == [1000, 1000, 1000]
     # Columns: label, fold, trained on, scored, epochs, best epoch, wall s, cpu s, stop-split medians.
     assert all(float(row[7]) < 300 for row in rows), out
+
+
+def test_fold_worlds_refuse_a_bad_split():
+    from ccjax.world import World
+
+    world, truth = World.default(), np.ones((4, 3))
+    with pytest.raises(ValueError, match="fold_of: expected every fold 0..2 used"):
+        evaluation.fold_worlds(world, truth, 3, np.array([0, 0, 1, 1]))
+    with pytest.raises(ValueError, match="fold_of: expected 4 integer folds"):
+        evaluation.fold_worlds(world, truth, 3, np.array([0.0, 1.0, 2.0, 0.0]))

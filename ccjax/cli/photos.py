@@ -515,7 +515,8 @@ def add_evaluate(sub) -> None:
         type=int,
         default=None,
         help="K-fold cross-validation (K >= 2). Alone: each fold's models learn the expected lights from the other "
-        "folds' ground truth (image i in fold i mod K). With --train: the folds of training (below)",
+        "folds' ground truth (the CSV's fold column when it has one, else image i in fold i mod K). "
+        "With --train: the folds of training (below)",
     )
     p.add_argument(
         "--train",
@@ -731,14 +732,18 @@ def run_evaluate(args) -> int:
     pairs = io.match_ground_truth(rows, args.directory)
     names = list(rows)
     assigned = None
-    if args.train:
+    if args.folds is not None:
         from ccjax import training
 
-        # Folds of training: the CSV's fold column, else seeded; assigned in ground-truth order (as
-        # ``ccjax train --folds``), so the same file and seed give the same folds.
         try:
             given = training.read_folds(args.ground_truth)
-            assigned = dict(zip(names, training.assign_folds(names, args.folds, seed=args.seed, given=given)))
+            if args.train:
+                # Folds of training: the CSV's fold column, else seeded; assigned in ground-truth
+                # order (as ``ccjax train --folds``), so the same file and seed give the same folds.
+                assigned = dict(zip(names, training.assign_folds(names, args.folds, seed=args.seed, given=given)))
+            elif given is not None:
+                # Fold worlds follow a published split when the CSV has one (else image i in fold i mod K).
+                assigned = dict(zip(names, training.assign_folds(names, args.folds, given=given)))
         except ValueError as error:
             raise ValueError(f"--folds: {error}") from None
     order = sorted(range(len(pairs)), key=lambda index: str(pairs[index][0]))
@@ -758,11 +763,12 @@ def run_evaluate(args) -> int:
                 file=sys.stderr,
             )
     fold_of, validations = None, {}
-    if assigned is not None:
+    if assigned is not None and args.train and args.folds is not None:
         fold_of = np.array([assigned[name] for name in names])
         models = {label: [fit_cached(label, world)] * args.folds for label in args.methods}
     elif args.folds is not None:
-        fold_of, worlds = evaluation.fold_worlds(world, truth, args.folds)
+        given_folds = None if assigned is None else np.array([assigned[name] for name in names])
+        fold_of, worlds = evaluation.fold_worlds(world, truth, args.folds, given_folds)
         models = {label: [fit_cached(label, w) for w in worlds] for label in args.methods}
     else:
         models = {label: [fit_cached(label, world)] for label in args.methods}
@@ -793,11 +799,12 @@ def run_evaluate(args) -> int:
         truth=truth[keep],
         keep_going=True,
     )
-    if assigned is not None:
+    if args.train:
         source = "the ground truth's fold column" if training.read_folds(args.ground_truth) else f"seed {args.seed}"
         folds = f"; {args.folds} folds ({source}): {', '.join(args.train)} trained within them, --methods not"
     elif args.folds is not None:
-        folds = f"; {args.folds}-fold cross-validation"
+        source = "the ground truth's fold column" if assigned is not None else "image i in fold i mod K"
+        folds = f"; {args.folds}-fold cross-validation ({source})"
     else:
         folds = ""
     preparation = args.preprocessing or "each method's default"

@@ -408,19 +408,24 @@ def run_images(
     )
 
 
-def fold_worlds(world: World, truth: np.ndarray, folds: int) -> tuple[np.ndarray, list[World]]:
+def fold_worlds(
+    world: World, truth: np.ndarray, folds: int, fold_of: np.ndarray | None = None
+) -> tuple[np.ndarray, list[World]]:
     """Worlds for K-fold cross-validation of trained methods on an image set.
 
-    Image ``i`` is in fold ``i mod K``. The world of fold ``k`` keeps everything but its training
-    illuminants, which become the lights of the *other* folds' ground truths: each ground-truth RGB
-    is matched to the world illuminant (training or test set) of nearest (r,g) chromaticity, so the
-    methods that learn from the expected lights (AVE-ILLUM, the illumination constraint of ECRULE,
-    Colour by Correlation, the nets) learn those of the data set without seeing the held-out fold.
+    Image ``i`` is in fold ``fold_of[i]`` (default ``i mod K``). The world of fold ``k`` keeps
+    everything but its training illuminants, which become the lights of the *other* folds' ground
+    truths: each ground-truth RGB is matched to the world illuminant (training or test set) of
+    nearest (r,g) chromaticity, so the methods that learn from the expected lights (AVE-ILLUM, the
+    illumination constraint of ECRULE, Colour by Correlation, the nets) learn those of the data set
+    without seeing the held-out fold.
 
     Arguments:
         world: the world whose illuminants are matched.
         truth: ``(N, 3)`` ground-truth camera RGB, any scale.
         folds: ``K``, from 2 to ``N``.
+        fold_of: ``(N,)`` the fold of each image, integers in ``[0, K)`` with every fold used (such
+            as a data set's published split); ``None``: image ``i`` in fold ``i mod K``.
 
     Returns:
         ``(fold of each image (N,), [world_0, ..., world_{K-1}])``.
@@ -433,7 +438,14 @@ def fold_worlds(world: World, truth: np.ndarray, folds: int) -> tuple[np.ndarray
     pool = np.concatenate([np.asarray(world.train_illuminants), np.asarray(world.test_illuminants)])
     pool_rg = chromaticity(pool @ np.asarray(world.camera.sensors, np.float64))
     nearest = np.argmin(((chromaticity(truth)[:, None, :] - pool_rg[None]) ** 2).sum(-1), axis=1)
-    fold_of = np.arange(len(truth)) % folds
+    if fold_of is None:
+        fold_of = np.arange(len(truth)) % folds
+    else:
+        fold_of = np.asarray(fold_of)
+        if fold_of.shape != (len(truth),) or not np.issubdtype(fold_of.dtype, np.integer):
+            raise ValueError(f"fold_of: expected {len(truth)} integer folds (one per image), got {fold_of.shape}")
+        if set(fold_of.tolist()) != set(range(folds)):
+            raise ValueError(f"fold_of: expected every fold 0..{folds - 1} used, got {sorted(set(fold_of.tolist()))}")
     worlds = []
     for fold in range(folds):
         chosen = np.unique(nearest[fold_of != fold])
