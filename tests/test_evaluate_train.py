@@ -234,7 +234,7 @@ def test_fold_worlds_refuse_a_bad_split():
     from ccjax.world import World
 
     world, truth = World.default(), np.ones((4, 3))
-    with pytest.raises(ValueError, match="fold_of: expected every fold 0..2 used"):
+    with pytest.raises(ValueError, match=re.escape("fold_of: expected every fold 0..2 used")):
         evaluation.fold_worlds(world, truth, 3, np.array([0, 0, 1, 1]))
     with pytest.raises(ValueError, match="fold_of: expected 4 integer folds"):
         evaluation.fold_worlds(world, truth, 3, np.array([0.0, 1.0, 2.0, 0.0]))
