@@ -78,7 +78,8 @@ def check_learn_correlation(out: str, gamut: tuple[str, ...]) -> None:
 
 
 def test_learn_correlation_quick():
-    check_learn_correlation(run_example("learn_correlation.py", "--quick"), ("ECRULE-MV",))
+    # --quick leaves the gamut methods out (their kernel's compilation is a third of the run).
+    check_learn_correlation(run_example("learn_correlation.py", "--quick"), ())
 
 
 def check_learned_sharpening(out: str) -> None:
