@@ -74,7 +74,9 @@ def test_padded_sizes_never_cross_an_engine_budget(default_world):
         assert size >= n
         for budget in budgets:
             assert (n <= budget) == (size <= budget), (n, size, budget)
-    assert sizes[4] == sizes[8] == sizes[16] == 32 and sizes[64] == 128
+        assert size <= sweeps.MAX_PADDING * n
+    assert sizes[1] == 1 and sizes[4] == sizes[8] == 8 and sizes[16] == sizes[32] == 32
+    assert sizes[33] == sizes[48] == 48 and sizes[64] == sizes[128] == 128
     assert sizes[256] == 256 and sizes[1024] == 1024
     # Without a model that branches on the scene size nothing is padded.
     assert sweeps.padded_sizes([4, 8], []) == {4: 4, 8: 8}
