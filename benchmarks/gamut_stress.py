@@ -12,7 +12,7 @@ none``), chunked to bound memory. Per estimator and surface count it prints the 
 0), the share of scenes not ok (relaxed; fell back: no solution at any level or no data), for
 gamut mapping the share whose observation reduction overflowed, the rg RMS, and the time.
 
-Usage: python benchmarks/gamut_stress.py [--scenes 10000] [--surfaces 4,8,...,1024] [--chunk 250]
+Usage: python benchmarks/gamut_stress.py [--scenes 10000] [--surfaces 4,8,...,1024] [--chunk 50]
 [--extensions none,ND,FL,SP,MET,SP-ND,MET-ND,SP-FL,MET-FL] [--cbc all|none] [--materials all|none]
 """
 
@@ -103,7 +103,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--scenes", type=int, default=10_000)
     parser.add_argument("--surfaces", default=",".join(map(str, SIZES)))
-    parser.add_argument("--chunk", type=int, default=250)
+    parser.add_argument("--chunk", type=int, default=50)
     parser.add_argument("--extensions", default=",".join(EXTENSIONS), help="gamut extensions ('none' = matte)")
     parser.add_argument("--constraints", default="CRULE,ECRULE")
     parser.add_argument("--cbc", default="all", help="'all' (the extended C-by-C labels), 'none' or labels")
@@ -115,15 +115,18 @@ def main() -> None:
     tables = SceneTables.from_world(world, metals=True, fluorescent=materials.synthetic_fluorescent_surfaces())
     key = jax.random.key(2024)
     total_nan = 0
-    models = []
+    # Models are fitted one at a time and the compiled code dropped after each (peak memory: one
+    # model's gamut and one chunk's grid, not every model's).
+    jobs = []
     for extension in [e for e in args.extensions.split(",") if e]:
         for constraint in args.constraints.split(","):
             ext = None if extension == "none" else extension
             label = ("" if ext is None else ext + "-") + constraint
-            models.append((label, _gamut_chunk, gamut.fit(world, constraint=constraint, extension=ext)))
+            jobs.append((label, _gamut_chunk, lambda c=constraint, e=ext: gamut.fit(world, constraint=c, extension=e)))
     cbc = CBC_LABELS if args.cbc == "all" else [] if args.cbc == "none" else args.cbc.split(",")
-    models += [(label, _model_chunk, registry.fit_cached(label, world)) for label in cbc]
-    for label, chunk, model in models:
+    jobs += [(label, _model_chunk, lambda label=label: registry.fit(label, world)) for label in cbc]
+    for label, chunk, build in jobs:
+        model = build()
         print(f"{label} ({args.scenes} scenes per size, materials {args.materials}):", flush=True)
         for n in sizes:
             start, cpu = time.perf_counter(), time.process_time()
@@ -131,6 +134,8 @@ def main() -> None:
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
             for name, values in merged.items():
                 total_nan += _print(label + ("-" + name if name else ""), values, n, seconds, cpu)
+        del model
+        jax.clear_caches()
     load = os.getloadavg()
     print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     print("no NaN" if total_nan == 0 else f"FAILED: {total_nan} NaN estimates")
