@@ -318,8 +318,12 @@ def cached_model(
     try:
         arrays: dict[str, np.ndarray] = {}
         skeleton = encode_tree(model, arrays)
-        if not _same_tree(decode_tree(skeleton, arrays), model):
+        stored = decode_tree(skeleton, arrays)
+        if not _same_tree(stored, model):
             return model, False
+        # Hand back what a later run reads (same values; array types such as JAX's weak types
+        # can differ), so both runs trace the same programs and share XLA's compilation cache.
+        model = stored
         buffer = io.BytesIO()
         np.savez(buffer, **arrays)  # pyright: ignore[reportArgumentType]
         atomic_write(path.with_suffix(".npz"), buffer.getvalue())
