@@ -113,6 +113,26 @@ def test_fluorescent_gamut_adds_the_fluorescent_points_to_nd(default_world):
     _check_same_polytope(model, _oracle_points(default_world, True, True, fluorescent=fluorescent))
 
 
+def test_characterised_responses_are_balanced_by_the_approximated_lights_white(default_world, monkeypatch):
+    # A grey reflective "fluorescent" surface (reflectance 0.7, no emission) characterised from the
+    # measurement lights is predicted as 0.7 Ê (§7.1); balanced by Ê's own white, its FL gamut
+    # point under every light is 0.7 times the canonical white exactly (closed form), whatever the
+    # light approximation's error (balanced by the true light's white it is off by that error).
+    from ccjax import materials
+
+    grey = materials.FluorescentSurfaces(
+        names=("grey",), reflectance=jax.numpy.full((1, 101), 0.7), emission=jax.numpy.zeros((1, 101, 101))
+    )
+    lights = np.asarray(default_world.train_illuminants, np.float64)[: extensions.MEASUREMENT_LIGHTS]
+    monkeypatch.setattr(extensions, "characterised_fluorescents", lambda world: materials.characterise(grey, lights))
+    blocks = extensions.light_blocks(
+        default_world, Extension.parse("FL"), fluorescent=extensions.default_fluorescent(default_world)
+    )
+    white = np.asarray(default_world.canonical, np.float64) @ np.asarray(default_world.camera.sensors, np.float64)
+    assert len(blocks) == 1 + len(default_world.train_illuminants)
+    np.testing.assert_allclose(np.concatenate(blocks), np.broadcast_to(0.7 * white, (len(blocks), 3)), rtol=1e-5)
+
+
 @pytest.mark.parametrize("constraint,extension", [("CRULE", "SP"), ("CRULE", "SP4-ND")])
 def test_fact_b_a_single_specular_pixel_gives_its_light(default_world, constraint, extension):
     """Spec ch08-12 §1.8 fact (b): k w_C is the maximum-product point of the SP gamut, so one
