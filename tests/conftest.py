@@ -44,6 +44,26 @@ def default_world() -> World:
     return World.default()
 
 
+@pytest.fixture(scope="session")
+def small_test_world() -> World:
+    """The small synthetic world of ``tests/small_world.py`` (fast fits), shared by the command tests."""
+    from small_world import small_world
+
+    return small_world()
+
+
+@pytest.fixture
+def small_world_commands(tmp_path, monkeypatch, small_test_world):
+    """Every command on the small world, with a private cache in ``tmp_path`` (returned)."""
+    from ccjax import images
+    from ccjax.experiments import evaluation
+
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
+    for module in (images, evaluation):
+        monkeypatch.setattr(module, "cached_world", lambda *a, **k: small_test_world)
+    return tmp_path
+
+
 def pytest_collection_modifyitems(config, items):
     # Tests marked external_data skip with the reason when ../shared/data is absent (fail under
     # CI=true); the check runs once, before the first such test.

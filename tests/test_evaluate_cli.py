@@ -9,25 +9,21 @@ import json
 
 import numpy as np
 import pytest
-from small_world import small_world
 
-from ccjax import cli, images, io
+from ccjax import cli, io
 from ccjax.experiments import evaluation
 
 METHODS = ["GW", "shades-of-grey-p6", "DB-GW", "AVE-ILLUM"]
 
 
 @pytest.fixture(scope="module")
-def world():
-    return small_world()
+def world(small_test_world):
+    return small_test_world
 
 
 @pytest.fixture
-def setup(tmp_path, monkeypatch, world):
-    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
-    for module in (images, evaluation):
-        monkeypatch.setattr(module, "cached_world", lambda *a, **k: world)
-    return tmp_path
+def setup(small_world_commands):
+    return small_world_commands
 
 
 def _dataset(folder, count=6, seed=0, shape=(20, 30)):

@@ -10,10 +10,9 @@ import re
 import jax
 import numpy as np
 import pytest
-from small_world import small_world
 
 import ccjax.training.folds as fold_module
-from ccjax import cli, images, io, scenes, training
+from ccjax import cli, io, scenes, training
 from ccjax.experiments import evaluation
 
 LABEL = "C-by-C-MMSE"
@@ -22,8 +21,8 @@ N = 12
 
 
 @pytest.fixture(scope="module")
-def world():
-    return small_world()
+def world(small_test_world):
+    return small_test_world
 
 
 @pytest.fixture(scope="module")
@@ -36,11 +35,8 @@ def image_set(world, tmp_path_factory):
 
 
 @pytest.fixture
-def setup(tmp_path, monkeypatch, world):
-    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
-    for module in (images, evaluation):
-        monkeypatch.setattr(module, "cached_world", lambda *a, **k: world)
-    return tmp_path
+def setup(small_world_commands):
+    return small_world_commands
 
 
 def _evaluate(folder, truth, report, *extra):

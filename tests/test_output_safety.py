@@ -14,28 +14,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 from image_files import bad_files
-from small_world import small_world
 
 import ccjax.io
-from ccjax import cli, images, io
+from ccjax import cli, io
 from ccjax.cli import common, photos
-from ccjax.experiments import evaluation
 from ccjax.io import writing
 
 
 @pytest.fixture(scope="module")
-def world():
-    return small_world()
+def world(small_test_world):
+    return small_test_world
 
 
 @pytest.fixture
-def setup(tmp_path, monkeypatch, world):
+def setup(small_world_commands, monkeypatch):
     """The small world for every command, a private cache, the identity preview matrix (fast)."""
-    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
-    for module in (images, evaluation):
-        monkeypatch.setattr(module, "cached_world", lambda *a, **k: world)
     monkeypatch.setattr(ccjax.io, "preview_matrix_cached", lambda w: np.eye(3, dtype=np.float32))
-    return tmp_path
+    return small_world_commands
 
 
 def _image(path, colour=(0.5, 0.4, 0.3)):
