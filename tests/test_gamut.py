@@ -495,21 +495,24 @@ def test_scenes_scaled_by_1e_minus_12_and_1e6_give_the_same_answer(default_world
                     np.testing.assert_allclose(e[base + k], s * e[base], rtol=1e-5, err_msg=f"{name} x{s}")
 
 
-def test_streamed_reduction_equals_one_chunk(default_world):
-    """The observation reductions of large scenes run over chunks with a running maximum; any
-    chunk size gives the unchunked answer (here 96 observations in chunks of 16 versus one)."""
-    small = dict(locate_points=8, locate_iterations=2, fine_points=15, refine_steps=4, reduction_samples=3)
-    scenes = sample(jax.random.key(44), default_world, 3, 96)
-    outs = []
-    for chunk in (16, 4096):
-        model = gamut.fit(default_world, constraint="ECRULE", options=engine.GridOptions(chunk=chunk, **small))
-        run = eqx.filter_jit(lambda m, r, k: jax.vmap(lambda a, b: gamut.estimate_all(m, a, b, powers=(12,)))(r, k))
-        outs.append(run(model, scenes.rgb, scenes.mask))
-    for name in outs[0]:
-        np.testing.assert_array_equal(np.asarray(outs[0][name].status), np.asarray(outs[1][name].status))
-        np.testing.assert_allclose(
-            np.asarray(outs[0][name].illuminant), np.asarray(outs[1][name].illuminant), rtol=1e-6, err_msg=name
-        )
+def test_forms_argmax_is_numpys_first_argmax():
+    """The observation reductions of large scenes are a running maximum over the observations
+    (``constraints_3d.forms_argmax``); against NumPy's ``argmax`` (first maximum) over the full
+    ``(observations, forms)`` score array, with unusable observations, exact ties (repeated
+    observations) and an observation count that is not a multiple of the loop's step."""
+    rng = np.random.default_rng(7)
+    q = rng.uniform(0.05, 1.0, (101, 3)).astype(np.float32)
+    q[60:70] = q[10:20]  # repeats: the first of equal maxima must win
+    usable = rng.uniform(size=101) > 0.2
+    origin = rng.normal(size=(12, 3)).astype(np.float32)
+    squares = rng.uniform(0.5, 2.0, (12, 3)).astype(np.float32)
+    top = rng.normal(size=(30, 3)).astype(np.float32)
+    got = np.asarray(jax.jit(constraints_3d.forms_argmax)(q, usable, origin, squares, top))
+    q64 = q.astype(np.float64)
+    origin_scores = (q64 @ origin.T.astype(np.float64)) / np.sqrt((q64 * q64) @ squares.T.astype(np.float64))
+    scores = np.concatenate([origin_scores, q64 @ top.T.astype(np.float64)], axis=1)
+    scores[~usable] = -np.inf
+    np.testing.assert_array_equal(got, np.argmax(scores, axis=0))
 
 
 @pytest.mark.slow

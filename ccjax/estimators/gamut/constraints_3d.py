@@ -26,8 +26,8 @@ Scenes with many observations are first reduced to the observations that can mat
 extreme in chromaticity for locating (only chromaticities decide feasibility), and for the fine
 stage those that are the support point of the observed set in the direction ``n_k * v`` of some
 facet ``k`` at sample directions across the box (every constraint is a support function). Both
-reductions are streamed over chunks of observations with a running maximum, so memory does not
-grow with the number of observations (camera-sized images) and the result is the unchunked one.
+reductions are a running maximum over the observations (:func:`forms_argmax`), so memory does not
+grow with the number of observations (camera-sized images).
 Observations are divided by the scene's scale first (constraints are scale-invariant, ``T``
 scales with the scene), so no threshold is absolute. Selectors (``selectors.py``) are
 reductions over the fine grid.
@@ -40,7 +40,15 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax.estimators.gamut.engine import OUTSIDE, GridOptions, cone_violation, directions, dot, locate, square_grid
+from ccjax.estimators.gamut.engine import (
+    OUTSIDE,
+    GridOptions,
+    cone_violation,
+    directions,
+    locate,
+    max_of_forms,
+    square_grid,
+)
 
 # Coefficients of a masked observation: origin pairs give -sum(v)/|v| <= -1 (below any real
 # violation), top pairs give -1e20 sum(v) (never the largest constraint).
@@ -106,17 +114,29 @@ class Grid(eqx.Module):
 
 
 def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, " G"]:
-    """``V_S``: the largest normalised origin-facet violation (<= -1 when nothing constrains)."""
-    n_obs, k0, _ = obs.origin.shape
-    scale = jnp.repeat(obs.scale, k0, axis=0)
-    norm2 = dot(v * v, scale * scale)
-    return jnp.max(dot(v, obs.origin.reshape(n_obs * k0, 3)) * jax.lax.rsqrt(norm2), axis=1)
+    """``V_S``: the largest normalised origin-facet violation (<= -1 when nothing constrains).
+
+    The normalisation ``|q_j * v|`` depends on the observation only, so each observation's
+    maximum over its origin facets is scaled once (a positive factor commutes with the maximum,
+    exactly so in floating point: rounding is monotone)."""
+    xt = v.T
+    squares = xt * xt
+
+    def per_observation(best, xs):
+        origin, scale = xs
+        scale2 = scale * scale
+        norm2 = scale2[0] * squares[0] + scale2[1] * squares[1] + scale2[2] * squares[2]
+        return jnp.maximum(best, max_of_forms(v, origin) * jax.lax.rsqrt(norm2)), None
+
+    start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
+    best, _ = jax.lax.scan(per_observation, start, (obs.origin, obs.scale))
+    return best
 
 
 def inverse_extent(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, " G"]:
     """``1/T``: the largest top-facet constraint along each ray (negative when none binds)."""
     n_obs, k1, _ = obs.top.shape
-    return jnp.max(dot(v, obs.top.reshape(n_obs * k1, 3)), axis=1)
+    return max_of_forms(v, obs.top.reshape(n_obs * k1, 3))
 
 
 def violations(model, v, valid, obs: Observations) -> tuple[Array, Array, Array, Array]:
@@ -167,36 +187,7 @@ def observations(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tu
     return coefficients(model, q, usable), q, usable
 
 
-def _streamed_argmax(score, q, usable, width: int, chunk: int) -> Int[Array, " M"]:
-    """``argmax`` over observations of ``score(q, usable) -> (C, width)`` (``-inf`` where
-    unusable), computed over chunks of ``chunk`` observations with a running maximum, so memory
-    is O(chunk) whatever the number of observations; the first maximum wins, as in ``argmax``."""
-    count = q.shape[0]
-    chunk = min(chunk, count)
-    steps = -(-count // chunk)
-    pad = steps * chunk - count
-    qs = jnp.pad(q, ((0, pad), (0, 0))).reshape(steps, chunk, 3)
-    us = jnp.pad(usable, (0, pad)).reshape(steps, chunk)
-
-    def step(carry, xs):
-        best, index = carry
-        first, qc, uc = xs
-        values = score(qc, uc)
-        # max, then the first index reaching it: argmax's answer with two plain reductions
-        # (XLA's CPU argmax is a variadic reduce that does not vectorise: 10x slower here).
-        value = jnp.max(values, axis=0)
-        rows = jnp.arange(values.shape[0], dtype=jnp.int32)[:, None]
-        at = jnp.min(jnp.where(values == value[None], rows, values.shape[0]), axis=0)
-        better = value > best
-        return (jnp.where(better, value, best), jnp.where(better, first + at, index)), None
-
-    start = (jnp.full((width,), -jnp.inf, q.dtype), jnp.zeros((width,), jnp.int32))
-    firsts = jnp.arange(steps, dtype=jnp.int32) * chunk
-    (_, index), _ = jax.lax.scan(step, start, (firsts, qs, us))
-    return index
-
-
-def _chromaticity_extremes(q, usable, count: int, chunk: int) -> Int[Array, " M"]:
+def _chromaticity_extremes(q, usable, count: int) -> Int[Array, " M"]:
     """The observations extreme in (r,g) chromaticity in ``count`` directions (with repeats).
 
     Feasibility depends on observations only through their chromaticities, so observations
@@ -204,19 +195,73 @@ def _chromaticity_extremes(q, usable, count: int, chunk: int) -> Int[Array, " M"
     directions only enlarges the located region, which the later stages tighten.
     """
     angles = jnp.arange(count, dtype=q.dtype) * (2 * jnp.pi / count)
-    axes = jnp.stack([jnp.cos(angles), jnp.sin(angles)], axis=1).astype(q.dtype)
+    axes = jnp.stack([jnp.cos(angles), jnp.sin(angles), jnp.zeros_like(angles)], axis=1).astype(q.dtype)
+    chroma = q / jnp.maximum(jnp.sum(q, axis=-1, keepdims=True), 1e-30)
+    none = jnp.zeros((0, 3), q.dtype)
+    return forms_argmax(chroma, usable, none, none, axes)
 
-    def score(qc, uc):
-        chroma = qc[:, :2] / jnp.maximum(jnp.sum(qc, axis=-1, keepdims=True), 1e-30)
-        return jnp.where(uc[:, None], chroma @ axes.T, -jnp.inf)
 
-    return _streamed_argmax(score, q, usable, count, chunk)
+# Observations per step of `forms_argmax`'s loop (unrolled in its body).
+_OBSERVATIONS_PER_STEP = 4
+
+
+def forms_argmax(
+    q: Float[Array, "P 3"],
+    usable: Bool[Array, " P"],
+    origin_forms: Float[Array, "W0 3"],
+    origin_squares: Float[Array, "W0 3"],
+    top_forms: Float[Array, "W1 3"],
+) -> Int[Array, " W"]:
+    """For every form, the first usable observation maximising it: ``argmax_j`` of
+    ``(q_j . f) / sqrt((q_j * q_j) . s)`` for the origin forms ``f`` (squares ``s``) and of
+    ``q_j . f`` for the top forms, concatenated.
+
+    A running maximum over the observations with the forms as the minor (vectorised) axis: each
+    step is a few fused multiply-adds and selects per form, with no ``(observations, forms)``
+    array (memory O(forms) whatever the number of observations) and no separate pass for the
+    index (a strict ``>`` in index order keeps the first maximum, as ``argmax`` does)."""
+    count = q.shape[0]
+    steps = -(-count // _OBSERVATIONS_PER_STEP)
+    pad = steps * _OBSERVATIONS_PER_STEP - count
+    qs = jnp.pad(q, ((0, pad), (0, 0))).reshape(steps, _OBSERVATIONS_PER_STEP, 3)
+    us = jnp.pad(usable, (0, pad)).reshape(steps, _OBSERVATIONS_PER_STEP)
+    origin_t, squares_t, top_t = origin_forms.T, origin_squares.T, top_forms.T
+
+    def form(qj, forms):
+        return qj[0] * forms[0] + qj[1] * forms[1] + qj[2] * forms[2]
+
+    def step(carry, xs):
+        origin_best, origin_index, top_best, top_index = carry
+        first, qb, ub = xs
+        for row in range(_OBSERVATIONS_PER_STEP):
+            qj, index = qb[row], first + row
+            origin_score = form(qj, origin_t) * jax.lax.rsqrt(form(qj * qj, squares_t))
+            better = ub[row] & (origin_score > origin_best)
+            origin_best = jnp.where(better, origin_score, origin_best)
+            origin_index = jnp.where(better, index, origin_index)
+            top_score = form(qj, top_t)
+            better = ub[row] & (top_score > top_best)
+            top_best = jnp.where(better, top_score, top_best)
+            top_index = jnp.where(better, index, top_index)
+        return (origin_best, origin_index, top_best, top_index), None
+
+    n_origin, n_top = origin_forms.shape[0], top_forms.shape[0]
+    start = (
+        jnp.full((n_origin,), -jnp.inf, q.dtype),
+        jnp.zeros((n_origin,), jnp.int32),
+        jnp.full((n_top,), -jnp.inf, q.dtype),
+        jnp.zeros((n_top,), jnp.int32),
+    )
+    firsts = jnp.arange(steps, dtype=jnp.int32) * _OBSERVATIONS_PER_STEP
+    (_, origin_index, _, top_index), _ = jax.lax.scan(step, start, (firsts, qs, us))
+    return jnp.concatenate([origin_index, top_index])
 
 
 def _support_index(model, q, usable, lo, hi, options: GridOptions) -> tuple[Array, Array, Array]:
     """The observations that are a support point of the observed set, in a facet's direction
     ``n_k * v`` (origin facets: after normalising by ``|q * v|``), at sample directions over the
-    box (streamed over chunks); the first ``fine_observations`` of them in index order.
+    box (a running maximum over the observations); the first ``fine_observations`` of them in
+    index order.
 
     Returns:
         ``(index, keep, exact)``: indices, which of them are support points, and whether all fitted.
@@ -228,15 +273,12 @@ def _support_index(model, q, usable, lo, hi, options: GridOptions) -> tuple[Arra
     origin = origin / jnp.linalg.norm(origin, axis=-1, keepdims=True)
     top = (model.top_normals / model.top_offsets[:, None]).astype(q.dtype)
 
-    def score(qc, uc):
-        mapped = qc[:, None, :] * v[None]  # (C, S, 3)
-        origin_scores = jnp.einsum("psc,kc->psk", mapped, origin) / jnp.linalg.norm(mapped, axis=-1)[..., None]
-        top_scores = jnp.einsum("psc,kc->psk", mapped, top)
-        values = jnp.concatenate([origin_scores.reshape(qc.shape[0], -1), top_scores.reshape(qc.shape[0], -1)], 1)
-        return jnp.where(uc[:, None], values, -jnp.inf)
-
-    width = v.shape[0] * (origin.shape[0] + top.shape[0])
-    winners = jnp.sort(_streamed_argmax(score, q, usable, width, options.chunk))
+    # Every score is a length-3 form in the observation, q . (v_s * n_k) (origin facets divided by
+    # |q * v_s|, whose square is (q * q) . (v_s * v_s)).
+    origin_forms = (v[:, None, :] * origin[None]).reshape(-1, 3)  # (S * K0, 3)
+    origin_squares = jnp.broadcast_to((v * v)[:, None, :], (v.shape[0], origin.shape[0], 3)).reshape(-1, 3)
+    top_forms = (v[:, None, :] * top[None]).reshape(-1, 3)  # (S * K1, 3)
+    winners = jnp.sort(forms_argmax(q, usable, origin_forms, origin_squares, top_forms))
     first = jnp.concatenate([jnp.ones((1,), bool), winners[1:] != winners[:-1]]) & usable[winners]
     count = options.fine_observations if q.shape[0] <= options.large_scene else options.large_fine_observations
     slot = jnp.where(first, jnp.cumsum(first) - 1, count)
@@ -256,7 +298,7 @@ def locate_box(model, obs: Observations | None, q, usable, options: GridOptions)
     if q.shape[0] <= options.locate_observations and obs is not None:
         few = obs
     else:
-        index = _chromaticity_extremes(q, usable, options.locate_observations, options.chunk)
+        index = _chromaticity_extremes(q, usable, options.locate_observations)
         few = coefficients(model, q[index], usable[index])
 
     def region(rg):
@@ -273,9 +315,8 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     scale-invariant and ``T`` scales with it; the selectors multiply it back), so a scene and the
     same scene times ``1e-12`` give the same answer up to that factor. Scenes of at most
     ``max(fine_observations, exact_scene)`` observations run the fine stage on all of them;
-    larger ones on the support-point reduction, streamed over chunks of ``options.chunk``
-    observations (memory independent of the number of observations; the answer is the
-    unchunked one). MV refines on at most ``fine_observations`` support points
+    larger ones on the support-point reduction, a running maximum over the observations (memory
+    independent of their number). MV refines on at most ``fine_observations`` support points
     (``Grid.observations``).
 
     Arguments:

@@ -62,7 +62,6 @@ class GridOptions:
         exact_scene: scenes of at most this many observations run the fine stage on all of them
             (the unreduced engine, exact at every relaxation level; 0: only those of at most
             ``fine_observations``).
-        chunk: observations per step of the streamed reductions (memory is O(chunk)).
         first_level, levels: relaxation levels ``first_level * 2^i``, ``i < levels``.
     """
 
@@ -78,7 +77,6 @@ class GridOptions:
     large_fine_observations: int = 48
     reduction_samples: int = 5
     exact_scene: int = 0
-    chunk: int = 2048
     first_level: float = relaxation.FIRST_LEVEL
     levels: int = relaxation.LEVELS
 
@@ -119,6 +117,35 @@ def dot(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Array, "G M"
     follows (a K=3 matmul would materialise ``(G, M)``; a ``(G, P, K)`` layout compiles to slow
     loops)."""
     return v[:, None, 0] * coef[None, :, 0] + v[:, None, 1] * coef[None, :, 1] + v[:, None, 2] * coef[None, :, 2]
+
+
+# Linear forms per step of :func:`max_of_forms` (8 and 16 measured alike, about 12 G forms/s on 2
+# cores; 8 compiles faster).
+FORMS_PER_STEP = 8
+
+
+def max_of_forms(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Array, " G"]:
+    """``max_m v_g . coef_m`` for every direction, as a running maximum over steps of
+    :data:`FORMS_PER_STEP` forms with the directions as the minor (vectorised) axis.
+
+    The same maximum as ``jnp.max(dot(v, coef), axis=1)`` (up to the fused multiply-adds' rounding)
+    at about 4x its speed: XLA CPU reduces the ``(G, M)`` layout along its minor axis with slow
+    horizontal steps, and materialises blocks of it; here each step is 16 plain FMA-and-max vector
+    passes over ``G`` kept in registers. ``coef`` is padded with copies of its last row, which
+    change no maximum."""
+    count = coef.shape[0]
+    steps = -(-count // FORMS_PER_STEP)
+    coef = jnp.concatenate([coef, jnp.broadcast_to(coef[-1:], (steps * FORMS_PER_STEP - count, 3))])
+    xt = v.T
+
+    def step(best, block):
+        for row in range(FORMS_PER_STEP):
+            best = jnp.maximum(best, block[row, 0] * xt[0] + block[row, 1] * xt[1] + block[row, 2] * xt[2])
+        return best, None
+
+    start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
+    best, _ = jax.lax.scan(step, start, coef.reshape(steps, FORMS_PER_STEP, 3))
+    return best
 
 
 def dot_minor(xt: Float[Array, "3 G"], coef: Float[Array, "M 3"]) -> Float[Array, "M G"]:
