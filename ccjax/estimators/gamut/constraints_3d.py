@@ -45,6 +45,7 @@ from ccjax.estimators.gamut.engine import (
     GridOptions,
     cone_violation,
     directions,
+    form,
     locate,
     max_of_forms,
     square_grid,
@@ -124,9 +125,7 @@ def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array,
 
     def per_observation(best, xs):
         origin, scale = xs
-        scale2 = scale * scale
-        norm2 = scale2[0] * squares[0] + scale2[1] * squares[1] + scale2[2] * squares[2]
-        return jnp.maximum(best, max_of_forms(v, origin) * jax.lax.rsqrt(norm2)), None
+        return jnp.maximum(best, max_of_forms(v, origin) * jax.lax.rsqrt(form(scale * scale, squares))), None
 
     start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
     best, _ = jax.lax.scan(per_observation, start, (obs.origin, obs.scale))
@@ -226,9 +225,6 @@ def forms_argmax(
     qs = jnp.pad(q, ((0, pad), (0, 0))).reshape(steps, _OBSERVATIONS_PER_STEP, 3)
     us = jnp.pad(usable, (0, pad)).reshape(steps, _OBSERVATIONS_PER_STEP)
     origin_t, squares_t, top_t = origin_forms.T, origin_squares.T, top_forms.T
-
-    def form(qj, forms):
-        return qj[0] * forms[0] + qj[1] * forms[1] + qj[2] * forms[2]
 
     def step(carry, xs):
         origin_best, origin_index, top_best, top_index = carry

@@ -119,6 +119,12 @@ def dot(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Array, "G M"
     return v[:, None, 0] * coef[None, :, 0] + v[:, None, 1] * coef[None, :, 1] + v[:, None, 2] * coef[None, :, 2]
 
 
+def form(coef: Float[Array, "3"], xt: Float[Array, "3 G"]) -> Float[Array, " G"]:
+    """``coef . x_g`` for every column of ``xt`` (directions as the minor, vectorised axis), as
+    three fused multiply-adds."""
+    return coef[0] * xt[0] + coef[1] * xt[1] + coef[2] * xt[2]
+
+
 # Linear forms per step of :func:`max_of_forms` (8 and 16 measured alike, about 12 G forms/s on 2
 # cores; 8 compiles faster).
 FORMS_PER_STEP = 8
@@ -140,7 +146,7 @@ def max_of_forms(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Arr
 
     def step(best, block):
         for row in range(FORMS_PER_STEP):
-            best = jnp.maximum(best, block[row, 0] * xt[0] + block[row, 1] * xt[1] + block[row, 2] * xt[2])
+            best = jnp.maximum(best, form(block[row], xt))
         return best, None
 
     start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
