@@ -135,9 +135,18 @@ def _mondrian_images(world, count, key):
     rgb = rgb / rgb.max(axis=(1, 2, 3), keepdims=True) * 0.9
     images = np.repeat(np.repeat(rgb, 16, axis=1), 16, axis=2)
     lists = [
-        preprocessing.surfaces(LinearImage(rgb=image, clipped=np.zeros(image.shape[:2], bool))) for image in images
+        preprocessing.surfaces(LinearImage(rgb=image, clipped=np.zeros(image.shape[:2], bool)), pad=False)[0]
+        for image in images
     ]
-    return np.stack([r for r, _ in lists]), np.stack([m for _, m in lists])
+    # The dark rule drops a different number of blocks per image: one batch needs one padded
+    # length, the size class of the longest list (as ccjax evaluate groups images by size class).
+    size = preprocessing.padded_size(max(len(r) for r in lists))
+    rgb = np.zeros((count, size, 3), np.float32)
+    mask = np.zeros((count, size), bool)
+    for index, rows in enumerate(lists):
+        rgb[index, : len(rows)] = rows
+        mask[index, : len(rows)] = True
+    return rgb, mask
 
 
 def main() -> None:

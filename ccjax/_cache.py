@@ -153,23 +153,55 @@ def cached_arrays(
     Returns:
         The arrays by name.
     """
-    path = cache_directory() / kind / f"{key}.npz"
-    if path.is_file():
-        try:
-            with np.load(path, allow_pickle=False) as stored:
-                return {name: stored[name] for name in stored.files}
-        except (OSError, ValueError, EOFError):
-            pass
+    stored = read_arrays(kind, key)
+    if stored is not None:
+        return stored
     arrays = {name: np.asarray(value) for name, value in compute().items()}
+    write_arrays(kind, key, arrays, metadata)
+    return arrays
+
+
+def read_arrays(kind: str, key: str) -> dict[str, np.ndarray] | None:
+    """The arrays stored under (``kind``, ``key``), or None when absent, damaged or unreadable.
+
+    Arguments:
+        kind: sub-folder of the cache.
+        key: :func:`content_key` of everything the arrays depend on.
+
+    Returns:
+        The arrays by name, or None.
+    """
+    path = cache_directory() / kind / f"{key}.npz"
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as stored:
+            return {name: stored[name] for name in stored.files}
+    except (OSError, ValueError, EOFError):
+        return None
+
+
+def write_arrays(
+    kind: str, key: str, arrays: Mapping[str, np.ndarray], metadata: Mapping[str, Any] | None = None
+) -> None:
+    """Store ``arrays`` under (``kind``, ``key``) with a JSON record of ``metadata`` beside them;
+    an unwritable cache is ignored (it only costs time).
+
+    Arguments:
+        kind: sub-folder of the cache.
+        key: :func:`content_key` of everything the arrays depend on.
+        arrays: the arrays by name.
+        metadata: JSON-able facts written beside the arrays (for people reading the cache).
+    """
+    path = cache_directory() / kind / f"{key}.npz"
     try:
         buffer = io.BytesIO()
-        np.savez(buffer, **arrays)  # pyright: ignore[reportArgumentType]
+        np.savez(buffer, **{name: np.asarray(value) for name, value in arrays.items()})  # pyright: ignore[reportArgumentType]
         atomic_write(path, buffer.getvalue())
         record = {"format": FORMAT_VERSION, "kind": kind, **(metadata or {})}
         atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode())
     except OSError:
         pass
-    return arrays
 
 
 # ---------------------------------------------------------------------------------------------

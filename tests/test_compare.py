@@ -1,5 +1,6 @@
-"""``ccjax compare``: fits from the disk cache on a second run, and padded scene sizes (one compiled
-program for several surface counts) that leave every estimate as it is unpadded."""
+"""``ccjax compare``: fits and result cells from the disk cache on a second run, and padded scene
+sizes (one compiled program for several surface counts) that leave every estimate as it is
+unpadded."""
 
 from __future__ import annotations
 
@@ -21,18 +22,58 @@ def _fits_line(out: str) -> tuple[int, int]:
     return int(match.group(1)), int(match.group(2))
 
 
+def _results_line(out: str) -> tuple[int, int, int]:
+    match = re.search(r"^results: (\d+) of (\d+) \(method, surfaces\) cells from cache, (\d+) computed", out, re.M)
+    assert match, out
+    return int(match.group(1)), int(match.group(2)), int(match.group(3))
+
+
 def test_second_compare_reads_its_fits_from_the_cache(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
     argv = ["compare", "--scenes", "20", "--surfaces", "4,8", "--methods", "GW,ECRULE-MV", "--no-progress"]
     assert cli.main(argv) == 0
     first = capsys.readouterr().out
     assert _fits_line(first) == (0, 2)
+    assert _results_line(first) == (0, 4, 4)
     assert len(list((tmp_path / "fits").glob("*.npz"))) == 2
     assert cli.main(argv) == 0
     second = capsys.readouterr().out
     assert _fits_line(second) == (2, 0)
-    # The cached fits give the same table (everything after the fits line).
-    assert first.split("\n", 2)[2] == second.split("\n", 2)[2]
+    assert _results_line(second) == (4, 4, 0)
+    # --recompute computes every cell again, with the cached fits.
+    assert cli.main([*argv, "--recompute"]) == 0
+    third = capsys.readouterr().out
+    assert _fits_line(third) == (2, 0)
+    assert _results_line(third) == (0, 4, 4)
+    # The same tables every time (everything after the results line).
+    assert first.split("\n", 3)[3] == second.split("\n", 3)[3] == third.split("\n", 3)[3]
+
+
+def test_sweep_cache_reads_equal_cells_and_computes_only_new_ones(tmp_path, monkeypatch, default_world):
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
+    key = jax.random.key(3)
+    options = {"n_scenes": 12, "key": key, "progress": False}
+    computed = sweeps.sweep(default_world, ["GW", "RETINEX"], [4, 8], **options)
+    assert computed.cells_from_cache == 0 and not (tmp_path / "sweeps").exists()  # cache is opt-in
+    first = sweeps.sweep(default_world, ["GW", "RETINEX"], [4, 8], cache=True, **options)
+    assert first.cells_from_cache == 0
+    # A new method beside cached ones: only its cells are computed, the others read back equal.
+    second = sweeps.sweep(default_world, ["GW", "RETINEX", "DB-GW"], [4, 8], cache=True, **options)
+    assert second.cells_from_cache == 4
+    for label in ("GW", "RETINEX"):
+        for n in (4, 8):
+            assert computed.errors[label][n].keys() == second.errors[label][n].keys()
+            for name, values in computed.errors[label][n].items():
+                np.testing.assert_array_equal(second.errors[label][n][name], values)
+    alone = sweeps.sweep(default_world, ["DB-GW"], [4, 8], **options)
+    for n in (4, 8):
+        np.testing.assert_array_equal(second.errors["DB-GW"][n]["rg"], alone.errors["DB-GW"][n]["rg"])
+    # Anything the numbers depend on is in the key: other scenes, another seed, another count.
+    assert sweeps.sweep(default_world, ["GW"], [4], cache=True, **{**options, "n_scenes": 13}).cells_from_cache == 0
+    other_key = {**options, "key": jax.random.key(4)}
+    assert sweeps.sweep(default_world, ["GW"], [4], cache=True, **other_key).cells_from_cache == 0
+    assert sweeps.sweep(default_world, ["GW"], [4], cache=True, specular=True, **options).cells_from_cache == 0
+    assert sweeps.sweep(default_world, ["GW"], [4, 16], cache=True, **options).cells_from_cache == 1
 
 
 def test_cached_model_round_trip_and_refusals(tmp_path, monkeypatch, default_world):

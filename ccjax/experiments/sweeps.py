@@ -20,7 +20,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ccjax import metrics
-from ccjax._cache import cached_model, code_fingerprint, content_key
+from ccjax._cache import cached_model, code_fingerprint, content_key, read_arrays, write_arrays
 from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
 from ccjax.estimators.gamut.engine import GridOptions
@@ -210,6 +210,8 @@ class SweepResult:
             with ``"ok"`` booleans; statistics that do not apply to a method are absent.
         fits_from_cache, fits_fitted: how many labels were read from the disk cache of fits
             (:func:`fit_label`) and how many were fitted (methods given as models count in neither).
+        cells_from_cache: how many (method, surface count) cells of per-scene errors were read
+            from the disk cache of sweeps (``sweep(..., cache=True)``) instead of computed.
     """
 
     methods: list[str]
@@ -218,6 +220,7 @@ class SweepResult:
     errors: dict = field(default_factory=dict)
     fits_from_cache: int = 0
     fits_fitted: int = 0
+    cells_from_cache: int = 0
 
     def value(self, method: str, surfaces: int, statistic: str, summary: str = "rms") -> float:
         """A summary of one method's per-scene errors at one surface count.
@@ -538,6 +541,7 @@ def sweep(
     chunk_size: int | None = None,
     mesh: jax.sharding.Mesh | None = None,
     progress: bool = True,
+    cache: bool = False,
 ) -> SweepResult:
     """Run every method on the same synthetic scenes for each number of surfaces (Barnard 1999 §4.7).
 
@@ -554,6 +558,13 @@ def sweep(
         mesh: optional ``jax.sharding.Mesh`` with one axis; the scene axis of every chunk is sharded
             over it (multi-device or multi-host).
         progress: show a progress bar.
+        cache: read and write each (label, surface count) cell's per-scene errors in the disk
+            cache (``<cache>/sweeps``), keyed by everything they depend on (the label, the world,
+            the scene options and key, the counts, padded and chunk sizes, ccjax's code, JAX's
+            version and backend), so a repeated sweep computes only the cells it has not seen.
+            Only labelled methods on one device are cached (models given as objects, and sharded
+            sweeps, are always computed); the count of cells read is
+            :attr:`SweepResult.cells_from_cache`.
 
     Returns:
         A :class:`SweepResult`.
@@ -594,28 +605,65 @@ def sweep(
         size = min(size, n_scenes)
         size = int(math.ceil(size / n_devices) * n_devices)
         plan.append((n, size, int(math.ceil(n_scenes / size))))
+    # Cells of the disk cache of sweeps: the key holds everything a cell's numbers depend on, so a
+    # hit is what recomputing would give on this code, JAX and backend.
+    cell_keys: dict[tuple[int, int], str] = {}
+    if cache and mesh is None:
+        common = (
+            world,
+            code_fingerprint(),
+            jax.__version__,
+            jax.default_backend(),
+            jax.random.key_data(key),
+            n_scenes,
+            specular,
+            noise,
+            clip,
+        )
+        for n, size, _ in plan:
+            for position, method in enumerate(methods):
+                if isinstance(method, str):
+                    cell_keys[n, position] = content_key("sweep", method, n, sizes[n], size, *common)
+    cells: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+    for (n, position), cell_key in cell_keys.items():
+        stored = read_arrays("sweeps", cell_key)
+        if stored is not None:
+            cells[n, position] = stored
+    result.cells_from_cache = len(cells)
+    todo = {n: [p for p in range(len(resolved)) if (n, p) not in cells] for n in surfaces}
     bar = tqdm(
-        total=sum(chunks for _, _, chunks in plan), desc="sweep", unit="chunk", disable=not progress, leave=False
+        total=sum(chunks for n, _, chunks in plan if todo[n]),
+        desc="sweep",
+        unit="chunk",
+        disable=not progress,
+        leave=False,
     )
     for n, size, chunks in plan:
-        stream = jax.random.fold_in(key, n)
-        collected: list[list[dict]] = []
-        for index in range(chunks):
-            # Every chunk has the same shape (the last is padded with later scenes of the stream
-            # and trimmed), so the estimators compile once per (padded size, chunk size).
-            keys = scene_keys(stream, index * size, size)
-            if sharding is not None:
-                keys = jax.device_put(keys, sharding)
-            scenes = _sample(tables, keys, n, sizes[n], specular, noise, clip)
-            out = _errors(models, scenes, tables.canonical_white)
-            collected.append(jax.device_get(out))
-            bar.update()
-        for position, (label, model) in enumerate(resolved):
-            merged = {
-                name: np.concatenate([chunk[position][name] for chunk in collected])[:n_scenes]
-                for name in (*STATISTICS, "ok", "status")
-                if model.estimates_brightness or name not in BRIGHTNESS_STATISTICS
-            }
-            result.errors.setdefault(label, {})[n] = merged
+        positions = todo[n]
+        if positions:
+            stream = jax.random.fold_in(key, n)
+            collected: list[list[dict]] = []
+            for index in range(chunks):
+                # Every chunk has the same shape (the last is padded with later scenes of the
+                # stream and trimmed), so the estimators compile once per (padded size, chunk size).
+                keys = scene_keys(stream, index * size, size)
+                if sharding is not None:
+                    keys = jax.device_put(keys, sharding)
+                scenes = _sample(tables, keys, n, sizes[n], specular, noise, clip)
+                out = _errors([models[p] for p in positions], scenes, tables.canonical_white)
+                collected.append(jax.device_get(out))
+                bar.update()
+            for slot, position in enumerate(positions):
+                merged = {
+                    name: np.concatenate([chunk[slot][name] for chunk in collected])[:n_scenes]
+                    for name in (*STATISTICS, "ok", "status")
+                    if models[position].estimates_brightness or name not in BRIGHTNESS_STATISTICS
+                }
+                cells[n, position] = merged
+                if (n, position) in cell_keys:
+                    record = {"label": labels[position], "surfaces": n, "world": world.name}
+                    write_arrays("sweeps", cell_keys[n, position], merged, record)
+        for position, label in enumerate(labels):
+            result.errors.setdefault(label, {})[n] = cells[n, position]
     bar.close()
     return result
