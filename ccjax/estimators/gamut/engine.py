@@ -52,8 +52,11 @@ class GridOptions:
             whole triangle, whose edges the direction validity already handles).
         fine_points: per-axis points of the fine grid (``fine_points^2`` directions).
         refine_steps: iterations of the MV pattern search (it starts at half a fine step).
-        locate_observations: observations kept for locating (the extreme chromaticities in this
-            many directions) when a scene has more.
+        locate_observations: scenes with more observations locate with the extreme
+            chromaticities in this many directions (with repeats).
+        locate_distinct: slots for those extremes once repeats are removed (the 48 directions
+            find at most 13 distinct extremes in measured scenes of up to 1,024 surfaces; more
+            are dropped in index order, which can only widen the located box).
         fine_observations: observations kept for the fine stage when a scene has more (at most
             about 25 are support points at 64 surfaces);
         large_scene, large_fine_observations: the budget for scenes of more than ``large_scene``
@@ -72,6 +75,7 @@ class GridOptions:
     fine_points: int = 45
     refine_steps: int = 24
     locate_observations: int = 48
+    locate_distinct: int = 16
     fine_observations: int = 32
     large_scene: int = 128
     large_fine_observations: int = 48
