@@ -515,6 +515,44 @@ def test_forms_argmax_is_numpys_first_argmax():
     np.testing.assert_array_equal(got, np.argmax(scores, axis=0))
 
 
+def test_leading_forms_loop_reads_only_what_it_is_told():
+    """``max_of_forms(..., count)`` and ``surface_violation(..., count)`` (the fine stage reads
+    only a reduced scene's leading support points): against NumPy float64 maxima over the first
+    ``count`` forms / observations, under ``vmap`` with a different count per scene (the loop runs
+    to the batch's largest), and at least one step for a count of 0."""
+    rng = np.random.default_rng(11)
+    v = jnp.asarray(rng.uniform(1.2, 6.0, (37, 3)), jnp.float32)
+    coef = jnp.asarray(rng.normal(size=(4, 50, 3)), jnp.float32)
+    counts = np.array([50, 17, 1, 0], np.int32)
+    got = np.asarray(jax.jit(jax.vmap(engine.max_of_forms, in_axes=(None, 0, 0)))(v, coef, counts))
+    values = np.einsum("gc,smc->sgm", np.asarray(v, np.float64), np.asarray(coef, np.float64))
+    for scene, count in enumerate(counts):
+        # A count below one step still reads the first step (FORMS_PER_STEP forms).
+        read = max(int(np.ceil(count / engine.FORMS_PER_STEP)), 1) * engine.FORMS_PER_STEP
+        np.testing.assert_allclose(got[scene], values[scene, :, :read].max(axis=1), rtol=1e-5)
+    # Observations past the count never enter V_S, whatever their coefficients.
+    obs = constraints_3d.Observations(
+        origin=jnp.asarray(rng.normal(size=(9, 10, 3)), jnp.float32),
+        scale=jnp.asarray(rng.uniform(0.1, 1.0, (9, 3)), jnp.float32),
+        top=jnp.asarray(rng.normal(size=(9, 5, 3)), jnp.float32),
+    )
+    for count in (9, 4, 1):
+        head = constraints_3d.Observations(origin=obs.origin[:count], scale=obs.scale[:count], top=obs.top[:count])
+        np.testing.assert_array_equal(
+            np.asarray(jax.jit(constraints_3d.surface_violation)(v, obs, jnp.int32(count))),
+            np.asarray(jax.jit(constraints_3d.surface_violation)(v, head)),
+        )
+        origin = np.asarray(head.origin, np.float64)
+        scale = np.asarray(head.scale, np.float64)
+        v64 = np.asarray(v, np.float64)
+        expected = (
+            np.einsum("gc,pkc->gpk", v64, origin).max(axis=2) / np.sqrt(((v64[:, None] * scale) ** 2).sum(-1))
+        ).max(1)
+        np.testing.assert_allclose(
+            np.asarray(constraints_3d.surface_violation(v, obs, jnp.int32(count))), expected, rtol=1e-5
+        )
+
+
 @pytest.mark.slow
 def test_relaxed_scenes_equal_the_unreduced_engine(default_world):
     """Pruning observations is exact only at relaxation level 0 (the normalised violation of a

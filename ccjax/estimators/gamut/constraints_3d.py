@@ -89,6 +89,8 @@ class Grid(eqx.Module):
         inverse_extent: ``(G,)`` ``1 / T(u)``.
         surface, illuminant, cone: ``(G,)`` ``V_S``, ``V_I``, ``V_C``.
         observations: the (reduced) observations, for refining MV between grid points.
+        active: how many leading slots of ``observations`` can bind (the support points of a
+            reduced scene; every slot otherwise); the others are masked.
         step: ``(2,)`` the fine grid's (r,g) step.
         exact: the fine stage ran on every observation, or the reduction of a large scene kept
             every support point it selected.
@@ -104,6 +106,7 @@ class Grid(eqx.Module):
     illuminant: Float[Array, " G"]
     cone: Float[Array, " G"]
     observations: Observations
+    active: Int[Array, ""]
     step: Float[Array, "2"]
     exact: Bool[Array, ""]
     usable: Bool[Array, ""]
@@ -114,34 +117,54 @@ class Grid(eqx.Module):
 # per-direction quantities
 
 
-def surface_violation(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, " G"]:
+def surface_violation(
+    v: Float[Array, "G 3"], obs: Observations, count: Int[Array, ""] | None = None
+) -> Float[Array, " G"]:
     """``V_S``: the largest normalised origin-facet violation (<= -1 when nothing constrains).
 
     The normalisation ``|q_j * v|`` depends on the observation only, so each observation's
     maximum over its origin facets is scaled once (a positive factor commutes with the maximum,
-    exactly so in floating point: rounding is monotone)."""
+    exactly so in floating point: rounding is monotone). With ``count``, only the first ``count``
+    observations (at least one) are read: the others are masked and never bind."""
     xt = v.T
     squares = xt * xt
 
-    def per_observation(best, xs):
-        origin, scale = xs
-        return jnp.maximum(best, max_of_forms(v, origin) * jax.lax.rsqrt(form(scale * scale, squares))), None
+    def term(origin, scale):
+        return max_of_forms(v, origin) * jax.lax.rsqrt(form(scale * scale, squares))
 
     start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
-    best, _ = jax.lax.scan(per_observation, start, (obs.origin, obs.scale))
+    if count is None:
+        best, _ = jax.lax.scan(lambda best, xs: (jnp.maximum(best, term(*xs)), None), start, (obs.origin, obs.scale))
+        return best
+    needed = jnp.clip(count, 1, obs.origin.shape[0])
+
+    def body(carry):
+        index, best = carry
+        origin = jax.lax.dynamic_index_in_dim(obs.origin, index, keepdims=False)
+        scale = jax.lax.dynamic_index_in_dim(obs.scale, index, keepdims=False)
+        return index + 1, jnp.maximum(best, term(origin, scale))
+
+    _, best = jax.lax.while_loop(lambda carry: carry[0] < needed, body, (jnp.zeros((), jnp.int32), start))
     return best
 
 
-def inverse_extent(v: Float[Array, "G 3"], obs: Observations) -> Float[Array, " G"]:
-    """``1/T``: the largest top-facet constraint along each ray (negative when none binds)."""
+def inverse_extent(
+    v: Float[Array, "G 3"], obs: Observations, count: Int[Array, ""] | None = None
+) -> Float[Array, " G"]:
+    """``1/T``: the largest top-facet constraint along each ray (negative when none binds). With
+    ``count``, only the first ``count`` observations' constraints are read (masked ones never
+    bind)."""
     n_obs, k1, _ = obs.top.shape
-    return max_of_forms(v, obs.top.reshape(n_obs * k1, 3))
+    return max_of_forms(v, obs.top.reshape(n_obs * k1, 3), None if count is None else count * k1)
 
 
-def violations(model, v, valid, obs: Observations) -> tuple[Array, Array, Array, Array]:
+def violations(
+    model, v, valid, obs: Observations, count: Int[Array, ""] | None = None
+) -> tuple[Array, Array, Array, Array]:
     """``(R, V_S, V_I, V_C)``; ``R`` is the violation of the region any selector may use (CRULE:
-    ``V_S``; ECRULE: ``max(V_S, min(V_I, V_C))``), ``OUTSIDE`` outside the triangle."""
-    surface = surface_violation(v, obs)
+    ``V_S``; ECRULE: ``max(V_S, min(V_I, V_C))``), ``OUTSIDE`` outside the triangle; ``count``
+    as in :func:`surface_violation`."""
+    surface = surface_violation(v, obs, count)
     illuminant = cone_violation(1.0 / v, model.illuminant_planes.astype(v.dtype))
     cone = cone_violation(v * model.white.astype(v.dtype), model.map_planes.astype(v.dtype))
     region = jnp.maximum(surface, jnp.minimum(illuminant, cone)) if model.constraint == "ECRULE" else surface
@@ -353,17 +376,22 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     small = exact_all or count <= options.locate_observations
     everything = coefficients(model, q, usable) if small else None
     lo, hi = locate_box(model, everything, q, usable, options)
+    # The reduction puts the support points in the leading slots, so the fine stage reads only
+    # those (masked slots never bind: the same maxima, bitwise).
+    kept = None
     if count > options.fine_observations:
         index, keep, exact = _support_index(model, q, usable, lo, hi, options)
         reduced = coefficients(model, q[index], usable[index] & keep)
+        kept = jnp.sum(keep)
     else:
         exact, reduced = jnp.asarray(True), everything
     fine = everything if exact_all else reduced
+    active = None if exact_all else kept
     assert fine is not None and reduced is not None
     exact = exact | exact_all
     rg, step = square_grid(lo, hi, options.fine_points)
     _, v, valid = directions(rg)
-    inverse, surface = inverse_extent(v, fine), surface_violation(v, fine)
+    inverse, surface = inverse_extent(v, fine, active), surface_violation(v, fine, active)
     illuminant = cone_violation(1.0 / v, model.illuminant_planes.astype(v.dtype))
     cone = cone_violation(v * model.white.astype(v.dtype), model.map_planes.astype(v.dtype))
     return Grid(
@@ -374,6 +402,7 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
         illuminant=illuminant,
         cone=cone,
         observations=reduced,
+        active=jnp.asarray(reduced.top.shape[0] if kept is None else kept, jnp.int32),
         step=step,
         exact=exact,
         usable=jnp.any(usable),

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from ccjax.estimators.gamut import relaxation
 from ccjax.estimators.gamut.relaxation import relaxation_level
@@ -134,7 +134,9 @@ def form(coef: Float[Array, "3"], xt: Float[Array, "3 G"]) -> Float[Array, " G"]
 FORMS_PER_STEP = 8
 
 
-def max_of_forms(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Array, " G"]:
+def max_of_forms(
+    v: Float[Array, "G 3"], coef: Float[Array, "M 3"], count: Int[Array, ""] | None = None
+) -> Float[Array, " G"]:
     """``max_m v_g . coef_m`` for every direction, as a running maximum over steps of
     :data:`FORMS_PER_STEP` forms with the directions as the minor (vectorised) axis.
 
@@ -142,19 +144,36 @@ def max_of_forms(v: Float[Array, "G 3"], coef: Float[Array, "M 3"]) -> Float[Arr
     at about 4x its speed: XLA CPU reduces the ``(G, M)`` layout along its minor axis with slow
     horizontal steps, and materialises blocks of it; here each step is 16 plain FMA-and-max vector
     passes over ``G`` kept in registers. ``coef`` is padded with copies of its last row, which
-    change no maximum."""
-    count = coef.shape[0]
-    steps = -(-count // FORMS_PER_STEP)
-    coef = jnp.concatenate([coef, jnp.broadcast_to(coef[-1:], (steps * FORMS_PER_STEP - count, 3))])
+    change no maximum.
+
+    With ``count``, only the first ``count`` forms (at least one step) are read, in a loop whose
+    trip count follows it (under ``vmap``, the largest of the batch): for form lists whose
+    leading rows are the only ones that can bind."""
+    total = coef.shape[0]
+    steps = -(-total // FORMS_PER_STEP)
+    coef = jnp.concatenate([coef, jnp.broadcast_to(coef[-1:], (steps * FORMS_PER_STEP - total, 3))])
+    blocks = coef.reshape(steps, FORMS_PER_STEP, 3)
     xt = v.T
 
-    def step(best, block):
+    def accumulate(best: Array, block: Array) -> Array:
         for row in range(FORMS_PER_STEP):
             best = jnp.maximum(best, form(block[row], xt))
-        return best, None
+        return best
+
+    def step(best: Array, block: Array) -> tuple[Array, None]:
+        return accumulate(best, block), None
 
     start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
-    best, _ = jax.lax.scan(step, start, coef.reshape(steps, FORMS_PER_STEP, 3))
+    if count is None:
+        best, _ = jax.lax.scan(step, start, blocks)
+        return best
+    needed = jnp.clip(-(-count // FORMS_PER_STEP), 1, steps)
+
+    def body(carry):
+        index, best = carry
+        return index + 1, accumulate(best, jax.lax.dynamic_index_in_dim(blocks, index, keepdims=False))
+
+    _, best = jax.lax.while_loop(lambda carry: carry[0] < needed, body, (jnp.zeros((), jnp.int32), start))
     return best
 
 
