@@ -505,11 +505,12 @@ def test_forms_argmax_is_numpys_first_argmax():
     q[60:70] = q[10:20]  # repeats: the first of equal maxima must win
     usable = rng.uniform(size=101) > 0.2
     origin = rng.normal(size=(12, 3)).astype(np.float32)
-    squares = rng.uniform(0.5, 2.0, (12, 3)).astype(np.float32)
+    squares = rng.uniform(0.5, 2.0, (4, 3)).astype(np.float32)  # 4 groups of 3 origin forms
     top = rng.normal(size=(30, 3)).astype(np.float32)
     got = np.asarray(jax.jit(constraints_3d.forms_argmax)(q, usable, origin, squares, top))
     q64 = q.astype(np.float64)
-    origin_scores = (q64 @ origin.T.astype(np.float64)) / np.sqrt((q64 * q64) @ squares.T.astype(np.float64))
+    norms = np.repeat(np.sqrt((q64 * q64) @ squares.T.astype(np.float64)), 3, axis=1)
+    origin_scores = (q64 @ origin.T.astype(np.float64)) / norms
     scores = np.concatenate([origin_scores, q64 @ top.T.astype(np.float64)], axis=1)
     scores[~usable] = -np.inf
     np.testing.assert_array_equal(got, np.argmax(scores, axis=0))

@@ -232,20 +232,22 @@ def _chromaticity_extremes(q, usable, count: int) -> Int[Array, " M"]:
     return forms_argmax(chroma, usable, none, none, axes)
 
 
-# Observations per step of `forms_argmax`'s loop (unrolled in its body).
-_OBSERVATIONS_PER_STEP = 4
+# Observations per step of `forms_argmax`'s loop (unrolled in its body; 8 measured 1.2x faster
+# than 4 at 1,024 surfaces, 16 only 1.05x more for a longer compile).
+_OBSERVATIONS_PER_STEP = 8
 
 
 def forms_argmax(
     q: Float[Array, "P 3"],
     usable: Bool[Array, " P"],
     origin_forms: Float[Array, "W0 3"],
-    origin_squares: Float[Array, "W0 3"],
+    origin_squares: Float[Array, "S 3"],
     top_forms: Float[Array, "W1 3"],
 ) -> Int[Array, " W"]:
     """For every form, the first usable observation maximising it: ``argmax_j`` of
-    ``(q_j . f) / sqrt((q_j * q_j) . s)`` for the origin forms ``f`` (squares ``s``) and of
-    ``q_j . f`` for the top forms, concatenated.
+    ``(q_j . f) / sqrt((q_j * q_j) . s)`` for the origin forms ``f`` and of ``q_j . f`` for the
+    top forms, concatenated. The origin forms come in ``S`` equal groups, group ``i`` normalised
+    by ``origin_squares[i]`` (one norm per group and observation, not per form).
 
     A running maximum over the observations with the forms as the minor (vectorised) axis: each
     step is a few fused multiply-adds and selects per form, with no ``(observations, forms)``
@@ -256,6 +258,9 @@ def forms_argmax(
     pad = steps * _OBSERVATIONS_PER_STEP - count
     qs = jnp.pad(q, ((0, pad), (0, 0))).reshape(steps, _OBSERVATIONS_PER_STEP, 3)
     us = jnp.pad(usable, (0, pad)).reshape(steps, _OBSERVATIONS_PER_STEP)
+    n_origin, n_top, groups = origin_forms.shape[0], top_forms.shape[0], origin_squares.shape[0]
+    if groups and n_origin % groups:
+        raise ValueError(f"origin_forms: {n_origin} forms do not split into {groups} groups")
     origin_t, squares_t, top_t = origin_forms.T, origin_squares.T, top_forms.T
 
     def step(carry, xs):
@@ -263,17 +268,18 @@ def forms_argmax(
         first, qb, ub = xs
         for row in range(_OBSERVATIONS_PER_STEP):
             qj, index = qb[row], first + row
-            origin_score = form(qj, origin_t) * jax.lax.rsqrt(form(qj * qj, squares_t))
-            better = ub[row] & (origin_score > origin_best)
-            origin_best = jnp.where(better, origin_score, origin_best)
-            origin_index = jnp.where(better, index, origin_index)
+            if n_origin:
+                norms = jax.lax.rsqrt(form(qj * qj, squares_t))
+                origin_score = (form(qj, origin_t).reshape(groups, -1) * norms[:, None]).reshape(-1)
+                better = ub[row] & (origin_score > origin_best)
+                origin_best = jnp.where(better, origin_score, origin_best)
+                origin_index = jnp.where(better, index, origin_index)
             top_score = form(qj, top_t)
             better = ub[row] & (top_score > top_best)
             top_best = jnp.where(better, top_score, top_best)
             top_index = jnp.where(better, index, top_index)
         return (origin_best, origin_index, top_best, top_index), None
 
-    n_origin, n_top = origin_forms.shape[0], top_forms.shape[0]
     start = (
         jnp.full((n_origin,), -jnp.inf, q.dtype),
         jnp.zeros((n_origin,), jnp.int32),
@@ -304,7 +310,7 @@ def _support_index(model, q, usable, lo, hi, options: GridOptions) -> tuple[Arra
     # Every score is a length-3 form in the observation, q . (v_s * n_k) (origin facets divided by
     # |q * v_s|, whose square is (q * q) . (v_s * v_s)).
     origin_forms = (v[:, None, :] * origin[None]).reshape(-1, 3)  # (S * K0, 3)
-    origin_squares = jnp.broadcast_to((v * v)[:, None, :], (v.shape[0], origin.shape[0], 3)).reshape(-1, 3)
+    origin_squares = v * v  # (S, 3): one norm per sample direction
     top_forms = (v[:, None, :] * top[None]).reshape(-1, 3)  # (S * K1, 3)
     winners = forms_argmax(q, usable, origin_forms, origin_squares, top_forms)
     count = options.fine_observations if q.shape[0] <= options.large_scene else options.large_fine_observations
