@@ -182,6 +182,28 @@ def test_swallowed_interrupt_is_delivered_again():
     assert time.perf_counter() - start < 5
 
 
+@needs_default_handler
+def test_one_interrupt_reported_twice_is_delivered_once():
+    # Several callbacks can report the same Ctrl-C; a second redelivery would reach the process
+    # after the command stopped (and kill it by SIGINT instead of exit 130).
+    interrupts = 0
+    start = time.perf_counter()
+    try:
+        cli.redeliver_interrupts(types.SimpleNamespace(exc_value=KeyboardInterrupt()))
+        cli.redeliver_interrupts(types.SimpleNamespace(exc_value=KeyboardInterrupt()))
+        while time.perf_counter() - start < 5:
+            time.sleep(0.001)
+    except KeyboardInterrupt:
+        interrupts += 1
+    try:
+        deadline = time.perf_counter() + 0.3
+        while time.perf_counter() < deadline:
+            time.sleep(0.001)
+    except KeyboardInterrupt:
+        interrupts += 1
+    assert interrupts == 1
+
+
 def test_other_unraisable_errors_go_to_the_default_hook(capsys, monkeypatch):
     class Broken:
         def __del__(self):

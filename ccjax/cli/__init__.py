@@ -10,7 +10,9 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import os
+import signal
 import sys
+import threading
 from typing import TYPE_CHECKING
 
 # Nothing here imports more than the standard library at module level: the console script imports
@@ -133,11 +135,22 @@ def redeliver_interrupts(unraisable) -> None:
         import _thread
         import threading
 
+        # One Ctrl-C is one interrupt: a single KeyboardInterrupt can be reported by several
+        # callbacks in a row, and a second redelivery would arrive after the command has already
+        # stopped (an uncaught KeyboardInterrupt at exit kills the process by SIGINT, not 130).
+        if any(timer.is_alive() for timer in _REDELIVERIES):
+            return
         timer = threading.Timer(0.01, _thread.interrupt_main)
         timer.daemon = True  # never delays the exit
+        _REDELIVERIES[:] = [timer]
         timer.start()
     else:
         sys.__unraisablehook__(unraisable)
+
+
+_REDELIVERIES: list = []
+"""The pending redelivery of :func:`redeliver_interrupts` (at most one), cancelled when
+:func:`main` returns."""
 
 
 def import_holding_interrupts(*names: str) -> None:
@@ -187,6 +200,10 @@ def main(argv: list[str] | None = None) -> int:
     except BaseException as error:
         if interrupted(error):
             print(f"{prefix(command)}: interrupted", file=sys.stderr)
+            if argv is None and threading.current_thread() is threading.main_thread():
+                # The process is stopping on this interrupt: a late one (a redelivery in flight, a
+                # second Ctrl-C) must not turn the exit into death by SIGINT.
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
             return 130
         if isinstance(error, BrokenPipeError):
             # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;
@@ -199,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
         raise
     finally:
         sys.unraisablehook = previous_hook
+        for timer in _REDELIVERIES:
+            timer.cancel()
 
 
 __all__ = [
