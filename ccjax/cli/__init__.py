@@ -133,7 +133,6 @@ def redeliver_interrupts(unraisable) -> None:
     """
     if isinstance(unraisable.exc_value, KeyboardInterrupt):
         import _thread
-        import threading
 
         # One Ctrl-C is one interrupt: a single KeyboardInterrupt can be reported by several
         # callbacks in a row, and a second redelivery would arrive after the command has already
