@@ -497,7 +497,7 @@ def test_scenes_scaled_by_1e_minus_12_and_1e6_give_the_same_answer(default_world
 
 def test_forms_argmax_is_numpys_first_argmax():
     """The observation reductions of large scenes are a running maximum over the observations
-    (``constraints_3d.forms_argmax``); against NumPy's ``argmax`` (first maximum) over the full
+    (``engine.forms_argmax``); against NumPy's ``argmax`` (first maximum) over the full
     ``(observations, forms)`` score array, with unusable observations, exact ties (repeated
     observations) and an observation count that is not a multiple of the loop's step."""
     rng = np.random.default_rng(7)
@@ -507,13 +507,63 @@ def test_forms_argmax_is_numpys_first_argmax():
     origin = rng.normal(size=(12, 3)).astype(np.float32)
     squares = rng.uniform(0.5, 2.0, (4, 3)).astype(np.float32)  # 4 groups of 3 origin forms
     top = rng.normal(size=(30, 3)).astype(np.float32)
-    got = np.asarray(jax.jit(constraints_3d.forms_argmax)(q, usable, origin, squares, top))
+    got = np.asarray(jax.jit(engine.forms_argmax)(q, usable, origin, squares, top))
     q64 = q.astype(np.float64)
     norms = np.repeat(np.sqrt((q64 * q64) @ squares.T.astype(np.float64)), 3, axis=1)
     origin_scores = (q64 @ origin.T.astype(np.float64)) / norms
     scores = np.concatenate([origin_scores, q64 @ top.T.astype(np.float64)], axis=1)
     scores[~usable] = -np.inf
     np.testing.assert_array_equal(got, np.argmax(scores, axis=0))
+
+
+def test_certified_forms_give_every_maximum_on_the_grid():
+    """The fine stage's ``1/T`` reads only the top-facet forms a box bound cannot exclude
+    (``engine.binding_forms``): on a grid of directions with invalid ones, forms of which many are
+    within a hair of each maximum, near-ties (forms nudged by 1e-6) and a count below the number
+    of forms, the maximum over the kept forms is NumPy's float64 maximum over the first ``count``
+    forms at every valid direction (to float32 rounding), and fewer forms are kept than given."""
+    rng = np.random.default_rng(23)
+    n, tile = 24, 3
+    r, g = np.meshgrid(np.linspace(0.2, 0.45, n), np.linspace(0.15, 0.4, n), indexing="ij")
+    rg = jnp.asarray(np.stack([r.ravel(), g.ravel()], axis=1), jnp.float32)
+    _, v, valid = engine.directions(rg)
+    valid = valid & jnp.asarray(rng.uniform(size=n * n) > 0.1)  # some directions not read
+    # Unit vectors of directions across the grid: the support function of a sphere, so each
+    # direction has its own nearby winner and many forms are within a hair of every maximum.
+    _, around, _ = engine.directions(jnp.asarray(rng.uniform([0.1, 0.1], [0.55, 0.5], (400, 2)), jnp.float32))
+    coef = np.asarray(around, np.float64) / np.linalg.norm(np.asarray(around, np.float64), axis=1, keepdims=True)
+    coef[200:260] = coef[100:160] * (1 + 1e-6)  # near-ties
+    coef = jnp.asarray(coef, jnp.float32)
+    count = 350
+
+    def pruned(v, valid, coef):
+        centre, half, occupied = engine.tile_boxes(v, valid, n, tile)
+        order, kept = engine.binding_forms(coef, jnp.int32(count), centre, half, occupied)
+        return engine.max_of_forms(v, coef[order], kept), kept
+
+    got, kept = jax.jit(pruned)(v, valid, coef)
+    expected = (np.asarray(v, np.float64) @ np.asarray(coef, np.float64)[:count].T).max(axis=1)
+    inside = np.asarray(valid)
+    np.testing.assert_allclose(np.asarray(got)[inside], expected[inside], rtol=1e-6)
+    assert 0 < int(kept) < count
+
+
+def test_certified_inverse_extent_is_the_full_one_bitwise(default_world):
+    """On 1,024-surface scenes, the certified fine stage's ``1/T`` equals the one over every
+    form, bitwise, at every valid direction of each scene's fine grid (the same form reaches each
+    maximum), while reading a small fraction of the forms."""
+    model = gamut.fit(default_world, constraint="CRULE")
+    scenes = sample(jax.random.key(46), default_world, 24, 1024)
+    options = model.options
+
+    def both(rgb, mask):
+        grid = constraints_3d.evaluate(model, rgb, mask)
+        _, v, valid = engine.directions(grid.rg)
+        return constraints_3d.inverse_extent(v, grid.observations), grid.inverse_extent, valid
+
+    full, certified, valid = map(np.asarray, jax.jit(jax.vmap(both))(scenes.rgb, scenes.mask))
+    assert options.certificate_tile > 0 and options.fine_points % options.certificate_tile == 0
+    np.testing.assert_array_equal(certified[valid], full[valid])
 
 
 def test_leading_forms_loop_reads_only_what_it_is_told():

@@ -20,7 +20,10 @@ Stages, all with fixed shapes so the kernel jits and vmaps:
 
 1. *locate* (:func:`~ccjax.estimators.gamut.engine.locate`) on the region violation, from the
    model's domain of directions;
-2. *fine*: ``T`` and the violations on a ``fine_points x fine_points`` grid over that box.
+2. *fine*: ``T`` and the violations on a ``fine_points x fine_points`` grid over that box. ``1/T``
+   reads, in each block of ``certificate_tile`` directions, only the forms a bound over the block
+   cannot exclude (:func:`certified_inverse_extent`): typically a handful of the thousands, with
+   the same maximum at every valid direction.
 
 Scenes with many observations are first reduced to the observations that can matter: those
 extreme in chromaticity for locating (only chromaticities decide feasibility), and for the fine
@@ -43,12 +46,15 @@ from jaxtyping import Array, Bool, Float, Int
 from ccjax.estimators.gamut.engine import (
     OUTSIDE,
     GridOptions,
+    binding_forms,
     cone_violation,
     directions,
     form,
+    forms_argmax,
     locate,
     max_of_forms,
     square_grid,
+    tile_boxes,
 )
 
 # Coefficients of a masked observation: origin pairs give -sum(v)/|v| <= -1 (below any real
@@ -155,6 +161,28 @@ def inverse_extent(
     return max_of_forms(v, obs.top.reshape(n_obs * k1, 3), None if count is None else count * k1)
 
 
+def certified_inverse_extent(
+    v: Float[Array, "G 3"],
+    valid: Bool[Array, " G"],
+    obs: Observations,
+    count: Int[Array, ""] | None,
+    options: GridOptions,
+) -> Float[Array, " G"]:
+    """:func:`inverse_extent` on the fine grid, reading only the top-facet forms that can bind in
+    some block of ``options.certificate_tile`` directions (:func:`~ccjax.estimators.gamut.engine.binding_forms`).
+
+    At every valid direction the same form reaches the maximum, so the value is the same,
+    bitwise; at invalid directions (which no selector reads) it may be smaller."""
+    n, tile = options.fine_points, options.certificate_tile
+    if tile <= 0 or n % tile:
+        return inverse_extent(v, obs, count)
+    n_obs, k1, _ = obs.top.shape
+    coef = obs.top.reshape(n_obs * k1, 3)
+    centre, half, occupied = tile_boxes(v, valid, n, tile)
+    order, kept = binding_forms(coef, None if count is None else count * k1, centre, half, occupied)
+    return max_of_forms(v, coef[order], kept)
+
+
 def violations(model, v, valid, obs: Observations) -> tuple[Array, Array, Array, Array]:
     """``(R, V_S, V_I, V_C)``; ``R`` is the violation of the region any selector may use (CRULE:
     ``V_S``; ECRULE: ``max(V_S, min(V_I, V_C))``), ``OUTSIDE`` outside the triangle."""
@@ -230,65 +258,6 @@ def _chromaticity_extremes(q, usable, count: int) -> Int[Array, " M"]:
     chroma = q / jnp.maximum(jnp.sum(q, axis=-1, keepdims=True), 1e-30)
     none = jnp.zeros((0, 3), q.dtype)
     return forms_argmax(chroma, usable, none, none, axes)
-
-
-# Observations per step of `forms_argmax`'s loop (unrolled in its body; 8 measured 1.2x faster
-# than 4 at 1,024 surfaces, 16 only 1.05x more for a longer compile).
-_OBSERVATIONS_PER_STEP = 8
-
-
-def forms_argmax(
-    q: Float[Array, "P 3"],
-    usable: Bool[Array, " P"],
-    origin_forms: Float[Array, "W0 3"],
-    origin_squares: Float[Array, "S 3"],
-    top_forms: Float[Array, "W1 3"],
-) -> Int[Array, " W"]:
-    """For every form, the first usable observation maximising it: ``argmax_j`` of
-    ``(q_j . f) / sqrt((q_j * q_j) . s)`` for the origin forms ``f`` and of ``q_j . f`` for the
-    top forms, concatenated. The origin forms come in ``S`` equal groups, group ``i`` normalised
-    by ``origin_squares[i]`` (one norm per group and observation, not per form).
-
-    A running maximum over the observations with the forms as the minor (vectorised) axis: each
-    step is a few fused multiply-adds and selects per form, with no ``(observations, forms)``
-    array (memory O(forms) whatever the number of observations) and no separate pass for the
-    index (a strict ``>`` in index order keeps the first maximum, as ``argmax`` does)."""
-    count = q.shape[0]
-    steps = -(-count // _OBSERVATIONS_PER_STEP)
-    pad = steps * _OBSERVATIONS_PER_STEP - count
-    qs = jnp.pad(q, ((0, pad), (0, 0))).reshape(steps, _OBSERVATIONS_PER_STEP, 3)
-    us = jnp.pad(usable, (0, pad)).reshape(steps, _OBSERVATIONS_PER_STEP)
-    n_origin, n_top, groups = origin_forms.shape[0], top_forms.shape[0], origin_squares.shape[0]
-    if groups and n_origin % groups:
-        raise ValueError(f"origin_forms: {n_origin} forms do not split into {groups} groups")
-    origin_t, squares_t, top_t = origin_forms.T, origin_squares.T, top_forms.T
-
-    def step(carry, xs):
-        origin_best, origin_index, top_best, top_index = carry
-        first, qb, ub = xs
-        for row in range(_OBSERVATIONS_PER_STEP):
-            qj, index = qb[row], first + row
-            if n_origin:
-                norms = jax.lax.rsqrt(form(qj * qj, squares_t))
-                origin_score = (form(qj, origin_t).reshape(groups, -1) * norms[:, None]).reshape(-1)
-                better = ub[row] & (origin_score > origin_best)
-                origin_best = jnp.where(better, origin_score, origin_best)
-                origin_index = jnp.where(better, index, origin_index)
-            top_score = form(qj, top_t)
-            better = ub[row] & (top_score > top_best)
-            top_best = jnp.where(better, top_score, top_best)
-            top_index = jnp.where(better, index, top_index)
-        return (origin_best, origin_index, top_best, top_index), None
-
-    start = (
-        jnp.full((n_origin,), -jnp.inf, q.dtype),
-        jnp.zeros((n_origin,), jnp.int32),
-        jnp.full((n_top,), -jnp.inf, q.dtype),
-        jnp.zeros((n_top,), jnp.int32),
-    )
-    firsts = jnp.arange(steps, dtype=jnp.int32) * _OBSERVATIONS_PER_STEP
-    (_, origin_index, _, top_index), _ = jax.lax.scan(step, start, (firsts, qs, us))
-    return jnp.concatenate([origin_index, top_index])
 
 
 def _support_index(model, q, usable, lo, hi, options: GridOptions) -> tuple[Array, Array, Array]:
@@ -393,7 +362,8 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     exact = exact | exact_all
     rg, step = square_grid(lo, hi, options.fine_points)
     _, v, valid = directions(rg)
-    inverse, surface = inverse_extent(v, fine, active), surface_violation(v, fine, active)
+    inverse = certified_inverse_extent(v, valid, fine, active, options)
+    surface = surface_violation(v, fine, active)
     illuminant = cone_violation(1.0 / v, model.illuminant_planes.astype(v.dtype))
     cone = cone_violation(v * model.white.astype(v.dtype), model.map_planes.astype(v.dtype))
     return Grid(
