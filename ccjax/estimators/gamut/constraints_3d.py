@@ -133,13 +133,17 @@ def surface_violation(
     squares = xt * xt
 
     def term(origin, scale):
-        return max_of_forms(v, origin) * jax.lax.rsqrt(form(scale * scale, squares))
+        # The few origin facets unrolled (max_of_forms would pad 10 to 16 forms).
+        worst = form(origin[0], xt)
+        for k in range(1, origin.shape[0]):
+            worst = jnp.maximum(worst, form(origin[k], xt))
+        return worst * jax.lax.rsqrt(form(scale * scale, squares))
 
     start = jnp.full(xt.shape[1:], -jnp.inf, v.dtype)
     if count is None:
         best, _ = jax.lax.scan(lambda best, xs: (jnp.maximum(best, term(*xs)), None), start, (obs.origin, obs.scale))
         return best
-    needed = jnp.clip(count, 1, obs.origin.shape[0])
+    needed = jnp.clip(count, 1, obs.origin.shape[0]).astype(jnp.int32)
 
     def body(carry):
         index, best = carry

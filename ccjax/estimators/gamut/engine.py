@@ -172,7 +172,7 @@ def max_of_forms(
     if count is None:
         best, _ = jax.lax.scan(step, start, blocks)
         return best
-    needed = jnp.clip(-(-count // FORMS_PER_STEP), 1, steps)
+    needed = jnp.clip(-(-count // FORMS_PER_STEP), 1, steps).astype(jnp.int32)
 
     def body(carry):
         index, best = carry
@@ -243,7 +243,7 @@ def forms_argmax(
     if count is None:
         (_, origin_index, _, top_index), _ = jax.lax.scan(step, start, (firsts, qs, us))
         return jnp.concatenate([origin_index, top_index])
-    needed = jnp.clip(-(-count // OBSERVATIONS_PER_STEP), 1, steps)
+    needed = jnp.clip(-(-count // OBSERVATIONS_PER_STEP), 1, steps).astype(jnp.int32)
 
     def body(carry):
         index, state = carry
@@ -314,7 +314,7 @@ def binding_forms(
         bound = bound + gap * centre[:, i, None] + jnp.abs(gap) * half[:, i, None]
         bound = bound + CERTIFICATE_SLACK * (jnp.abs(coef[None, :, i]) + jnp.abs(star[:, i, None])) * scale
     keep = live & jnp.any(occupied[:, None] & (bound > 0), axis=0)
-    kept = jnp.sum(keep)
+    kept = jnp.sum(keep, dtype=jnp.int32)
     order = jnp.zeros((total,), jnp.int32).at[jnp.where(keep, jnp.cumsum(keep) - 1, total)].set(rows, mode="drop")
     return order, kept
 
