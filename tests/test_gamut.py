@@ -446,13 +446,20 @@ def test_kernel_runs_in_x64(default_world, models):
             assert np.all(np.isfinite(np.asarray(estimate.illuminant))), name
 
 
-def test_estimate_batch_blocks_equal_one_vmap(default_world, models):
-    # Two blocks and a remainder of 5 scenes.
+def test_estimate_batch_blocks_equal_one_vmap(default_world, models, monkeypatch):
+    # 2 * block + 1 scenes: three equal blocks, the last padded with one copy of the first scene.
     estimator = gamut.GamutMapping(models[("ECRULE", None)], "SCWIA", 12.0)
     block = type(estimator).block_size
     assert block is not None and block > 1
-    scenes = sample(jax.random.key(43), default_world, 2 * block + 5, 8)
+    scenes = sample(jax.random.key(43), default_world, 2 * block + 1, 8)
+    calls = []
+    call = type(estimator).__call__
+    monkeypatch.setattr(type(estimator), "__call__", lambda self, *a: calls.append(1) or call(self, *a))
     blocked = eqx.filter_jit(estimate_batch)(estimator, scenes.rgb, scenes.mask)
+    monkeypatch.undo()
+    # One traced copy of the model (no separately vmapped remainder to trace and compile).
+    assert len(calls) == 1
+    assert blocked.illuminant.shape == (2 * block + 1, 3)
     whole = eqx.filter_jit(lambda e, r, k: jax.vmap(e)(r, k))(estimator, scenes.rgb, scenes.mask)
     np.testing.assert_allclose(np.asarray(blocked.illuminant), np.asarray(whole.illuminant), rtol=1e-5)
     np.testing.assert_array_equal(np.asarray(blocked.ok), np.asarray(whole.ok))
