@@ -8,10 +8,12 @@ import re
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from ccjax import _cache, cli
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.experiments import sweeps
 
@@ -148,3 +150,27 @@ def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path, meth
                     # (degrees, through arccos) amplifies them to ~2e-6 degrees.
                     atol = 1e-5 if name == "angular" else 1e-7
                     np.testing.assert_allclose(got, value, rtol=1e-6, atol=atol, err_msg=f"{method} {n} {name}")
+
+
+class _FailsAtSixteen(AbstractSurfaceEstimator):
+    """Grey world, except that tracing it on 16-surface scenes raises (a model that cannot compile)."""
+
+    def __call__(self, rgb, mask):
+        if rgb.shape[0] == 16:
+            raise ValueError("cannot trace 16 surfaces")
+        weights = mask.astype(rgb.dtype)[:, None]
+        return Estimate(illuminant=jnp.sum(rgb * weights, axis=0), status=jnp.asarray(int(Status.ESTIMATED)))
+
+
+def test_sweep_compiles_ahead_and_reports_a_failing_compile(default_world):
+    # Programs are compiled on a worker thread ahead of the counts that run them: results are
+    # the ones a sweep of each count alone gives, and an error raised while compiling reaches
+    # the caller as itself.
+    key = jax.random.key(5)
+    model = _FailsAtSixteen()
+    together = sweeps.sweep(default_world, [("grey", model)], (4, 8), 32, key, progress=False)
+    for n in (4, 8):
+        alone = sweeps.sweep(default_world, [("grey", model)], (n,), 32, key, progress=False)
+        np.testing.assert_array_equal(together.errors["grey"][n]["rg"], alone.errors["grey"][n]["rg"])
+    with pytest.raises(ValueError, match="cannot trace 16 surfaces"):
+        sweeps.sweep(default_world, [("grey", model)], (4, 16), 32, key, progress=False)
