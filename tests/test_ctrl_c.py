@@ -37,12 +37,15 @@ def _module(line: str) -> str:
     return line.rsplit("|", 1)[-1].strip()
 
 
-def _interrupt(command: list[str], delay: float, tmp_path: Path) -> tuple[int, list[str], str, bool]:
+def _interrupt(
+    command: list[str], delay: float, tmp_path: Path, exit_seconds: list[float] | None = None
+) -> tuple[int, list[str], str, bool]:
     """Run ``command`` (after ``python -X importtime``), SIGINT it ``delay`` s after ``main`` started.
 
     Returns:
         The exit code, the stderr lines that are not import times, the whole stderr, and whether
-        the signal was sent before the import of JAX had finished.
+        the signal was sent before the import of JAX had finished; the seconds from the signal
+        to the exit are appended to ``exit_seconds``.
     """
     tmp_path.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, CCJAX_CACHE=str(tmp_path / "cache"))
@@ -77,7 +80,10 @@ def _interrupt(command: list[str], delay: float, tmp_path: Path) -> tuple[int, l
         time.sleep(delay)
         during_import = not jax_imported.is_set()
         process.send_signal(signal.SIGINT)
+        sent = time.monotonic()
         process.wait(120)
+        if exit_seconds is not None:
+            exit_seconds.append(time.monotonic() - sent)
     finally:
         if process.poll() is None:
             process.kill()
@@ -128,6 +134,17 @@ def test_ctrl_c_at_any_time_exits_130_with_one_line(tmp_path):
 def test_ctrl_c_at_every_delay_exits_130_with_one_line(tmp_path, entry):
     command = _command(entry)
     _check([(delay, _interrupt(command, delay, tmp_path)) for delay in DELAYS])
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_a_sweep_compiles_ahead_exits_at_once(tmp_path):
+    # A cold `ccjax compare` compiles its programs on worker threads for about 20 s from ~4 s after
+    # main starts; the exit must not wait for the compilation in progress (it took 18-26 s).
+    seconds: list[float] = []
+    code, messages, text, _ = _interrupt(["-m", "ccjax", "compare", "--no-progress"], 7.0, tmp_path, seconds)
+    assert "Traceback" not in text, text[-3000:]
+    assert code == 130 and messages == ["ccjax compare: interrupted"], (code, messages)
+    assert seconds[0] < 3.0, seconds
 
 
 def test_interrupt_raised_inside_an_import_error_counts_as_ctrl_c():

@@ -7,6 +7,7 @@ One module per command group; each declares ``add_<command>(subparsers)`` (its a
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.util
 import os
@@ -203,6 +204,15 @@ def main(argv: list[str] | None = None) -> int:
                 # The process is stopping on this interrupt: a late one (a redelivery in flight, a
                 # second Ctrl-C) must not turn the exit into death by SIGINT.
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
+                workers = [thread for thread in threading.enumerate() if thread is not threading.main_thread()]
+                if any(thread.is_alive() and not thread.daemon for thread in workers):
+                    # A worker thread still busy (a sweep compiling programs ahead) would hold the
+                    # interpreter's exit until it finished, up to the length of a compilation:
+                    # stop now, as Ctrl-C should (every file ccjax writes is written atomically).
+                    for stream in (sys.stdout, sys.stderr):
+                        with contextlib.suppress(OSError, ValueError):
+                            stream.flush()
+                    os._exit(130)
             return 130
         if isinstance(error, BrokenPipeError):
             # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;

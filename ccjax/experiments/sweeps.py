@@ -13,7 +13,6 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import equinox as eqx
 import jax
@@ -649,31 +648,41 @@ def sweep(
             keys = jax.device_put(keys, sharding)
         return _sample(tables, keys, n, sizes[n], specular, noise, clip)
 
-    compiled: dict[tuple, Any] = {}
     x64 = bool(jax.config.read("jax_enable_x64"))
 
-    def compile_count(n: int, size: int, positions: list[int]):
-        """The compiled errors program of count ``n`` (and its sampler, compiled by sampling the
-        first chunk once); counts padded alike share one program."""
+    def compile_sampler(n: int, size: int) -> None:
+        """Compile count ``n``'s sampler (by sampling its first chunk once)."""
         with jax.enable_x64(x64):  # the caller's setting (a context is per thread)
-            scenes = chunk_scenes(n, size, 0)
-            program_key = (sizes[n], size, tuple(positions))
-            if program_key not in compiled:
-                chosen = [models[p] for p in positions]
-                compiled[program_key] = _errors.lower(chosen, scenes, tables.canonical_white).compile()
-            return compiled[program_key]
+            chunk_scenes(n, size, 0)
 
-    # Compilation is most of a cold sweep: one worker thread traces and compiles every count's
-    # programs in order while this thread runs those already compiled (XLA compiles and runs
-    # without holding the GIL), so compiling the next counts overlaps running this one.
-    # (Measured on 2 cores, the default `ccjax compare` cold: 52 s in sequence, 45 s overlapped.)
-    compiler = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ccjax-compile")
+    def compile_errors(n: int, size: int, positions: list[int]):
+        """Compile count ``n``'s sampler and the errors program of its padded size."""
+        with jax.enable_x64(x64):
+            scenes = chunk_scenes(n, size, 0)
+            return _errors.lower([models[p] for p in positions], scenes, tables.canonical_white).compile()
+
+    # Compilation is most of a cold sweep: two worker threads trace and compile the counts'
+    # programs in order (each distinct program once: counts padded alike share it) while this
+    # thread runs those already compiled (XLA compiles and runs without holding the GIL), so
+    # compiling overlaps running, and two programs compile at once.
+    # (Measured on 2 cores, the default `ccjax compare` cold: 52 s in sequence, 45 s with one
+    # worker, 40 s with two.)
+    compiler = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="ccjax-compile")
     try:
-        programs = {n: compiler.submit(compile_count, n, size, todo[n]) for n, size, _ in plan if todo[n]}
+        programs: dict[tuple, concurrent.futures.Future] = {}
+        samplers: dict[int, concurrent.futures.Future] = {}
+        for n, size, _ in plan:
+            if todo[n]:
+                program_key = (sizes[n], size, tuple(todo[n]))
+                if program_key in programs:
+                    samplers[n] = compiler.submit(compile_sampler, n, size)
+                else:
+                    programs[program_key] = samplers[n] = compiler.submit(compile_errors, n, size, todo[n])
         for n, size, chunks in plan:
             positions = todo[n]
             if positions:
-                program = programs[n].result()
+                samplers[n].result()
+                program = programs[sizes[n], size, tuple(positions)].result()
                 chosen = [models[p] for p in positions]
                 collected: list[list[dict]] = []
                 for index in range(chunks):
