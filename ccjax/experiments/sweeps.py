@@ -569,6 +569,10 @@ def sweep(
 
     Returns:
         A :class:`SweepResult`.
+
+    The surface counts' programs are traced and compiled on two worker threads ahead of the
+    count that runs. They see ``jax_enable_x64`` as the caller has it; other per-thread JAX
+    settings (a ``jax.default_device`` context) are not passed on: set those globally.
     """
     if not isinstance(n_scenes, int) or n_scenes < 1:
         raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")
