@@ -669,8 +669,9 @@ def sweep(
     # programs in order (each distinct program once: counts padded alike share it) while this
     # thread runs those already compiled (XLA compiles and runs without holding the GIL), so
     # compiling overlaps running, and two programs compile at once.
-    # (Measured on 2 cores, the default `ccjax compare` cold: 52 s in sequence, 45 s with one
-    # worker, 40 s with two.)
+    # (Measured on 2 cores, the default `ccjax compare` cold: 52 s compiling in sequence, 45 s with
+    # one worker; two workers against one, interleaved on a slower phase of the same machine:
+    # 78.9 and 68.4 s against 79.9 and 79.3 s.)
     compiler = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="ccjax-compile")
     try:
         programs: dict[tuple, concurrent.futures.Future] = {}
