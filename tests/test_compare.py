@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from ccjax import _cache, cli
+from ccjax.estimators import gamut
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.experiments import sweeps
@@ -110,17 +111,24 @@ def test_cached_model_round_trip_and_refusals(tmp_path, monkeypatch, default_wor
 def test_padded_sizes_never_cross_an_engine_budget(default_world):
     options = GridOptions()
     budgets = (options.fine_observations, options.locate_observations, options.large_scene)
-    model = sweeps.fit_label("ECRULE-MV", default_world)[0]
+    engine = sweeps.fit_label("ECRULE-MV", default_world)[0]
+    cip = gamut.cip.fit(default_world, "MV", coarse=8, fine=9)
     surfaces = [1, 4, 8, 16, 32, 33, 48, 64, 128, 256, 1024]
-    sizes = sweeps.padded_sizes(surfaces, [model])
-    for n, size in sizes.items():
-        assert size >= n
-        for budget in budgets:
-            assert (n <= budget) == (size <= budget), (n, size, budget)
-        assert size <= sweeps.MAX_PADDING * n
-    assert sizes[1] == 1 and sizes[4] == sizes[8] == 8 and sizes[16] == sizes[32] == 32
-    assert sizes[33] == sizes[48] == 48 and sizes[64] == sizes[128] == 128
-    assert sizes[256] == 256 and sizes[1024] == 1024
+    for models in ([engine], [engine, cip]):
+        sizes = sweeps.padded_sizes(surfaces, models)
+        for n, size in sizes.items():
+            assert size >= n
+            for budget in budgets:
+                assert (n <= budget) == (size <= budget), (n, size, budget)
+        assert sizes[33] == sizes[48] == 48 and sizes[64] == sizes[128] == 128
+        assert sizes[256] == 256 and sizes[1024] == 1024
+    # Below the smallest budget the 3-D engine reads only the usable observations: one program.
+    alone = sweeps.padded_sizes(surfaces, [engine])
+    assert {alone[n] for n in (1, 4, 8, 16, 32)} == {32}
+    # CIP reads every slot: buckets within a factor MAX_PADDING.
+    mixed = sweeps.padded_sizes(surfaces, [engine, cip])
+    assert all(size <= sweeps.MAX_PADDING * n for n, size in mixed.items())
+    assert mixed[1] == 1 and mixed[4] == mixed[8] == 8 and mixed[16] == mixed[32] == 32
     # Without a model that branches on the scene size nothing is padded.
     assert sweeps.padded_sizes([4, 8], []) == {4: 4, 8: 8}
 

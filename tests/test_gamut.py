@@ -288,6 +288,33 @@ def test_permutation_padding_and_scale(default_world, models, run_all, seed, per
         np.testing.assert_allclose(e[3], e[4], rtol=1e-4, err_msg=f"{name}: padding")
 
 
+def test_masked_slots_anywhere_are_never_read(default_world, models, run_all):
+    """Small scenes read only their usable observations (moved to the leading slots, in order):
+    eight surfaces scattered over 32 slots between masked junk give, bitwise, what the same eight
+    in the first slots give, for every selector; the fine grid counts eight observations."""
+    model = models[("ECRULE", "ND")]
+    rgb, mask = _scene(default_world, 21)
+    assert mask.all()
+    rng = np.random.default_rng(4)
+    junk = rng.uniform(-3.0, 50.0, (2, 32, 3)).astype(np.float32)
+    leading, scattered = junk.copy(), junk.copy()
+    leading[0, :8], leading[1, :8] = rgb, rgb
+    slots = np.sort(rng.choice(32, 8, replace=False))
+    scattered[0, slots] = rgb
+    masks = np.zeros((2, 32), bool)
+    masks[0, slots] = True
+    masks[1, :8] = True
+    batch = np.stack([scattered[0], leading[1]])
+    out = run_all(model, batch, masks)
+    for name in SELECTORS_E:
+        e = np.asarray(out[name].illuminant)
+        np.testing.assert_array_equal(e[0], e[1], err_msg=name)
+        assert np.all(np.isfinite(e))
+    grid = jax.jit(jax.vmap(lambda r, m: constraints_3d.evaluate(model, r, m)))(batch, masks)
+    assert grid.count is not None
+    np.testing.assert_array_equal(np.asarray(grid.count), [8, 8])
+
+
 def test_degenerate_scenes_are_finite_with_ok_false(default_world, models, run_all):
     rgb, mask = _scene(default_world, 6)  # a scene every selector solves without relaxation
     nothing = np.zeros((8, 3), np.float32)

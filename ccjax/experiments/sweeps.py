@@ -25,6 +25,7 @@ from ccjax._cache import cached_model, code_fingerprint, content_key, read_array
 from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
 from ccjax.estimators.gamut.engine import GridOptions
+from ccjax.estimators.gamut.model import GamutModel
 from ccjax.experiments.reports import Column, Report
 from ccjax.scenes import Scenes, SceneTables, resolve_options, sample_batch, scene_keys
 from ccjax.world import World
@@ -64,19 +65,28 @@ def scene_errors(model: AbstractEstimator, scenes, canonical_white) -> dict[str,
         :data:`STATISTICS` names -> ``(B,)`` errors, ``"ok"`` and ``"status"`` (the
         :class:`~ccjax.estimators.base.Status` codes).
     """
-    estimate = estimate_batch(model, scenes.rgb, scenes.mask)
-    e, truth = estimate.illuminant, scenes.illuminant
+    return _estimate_errors([estimate_batch(model, scenes.rgb, scenes.mask)], scenes, canonical_white)[0]
+
+
+def _estimate_errors(estimates: Sequence[base.Estimate], scenes, canonical_white) -> list[dict[str, jax.Array]]:
+    """:func:`scene_errors` of several models' estimates of the same scenes, the statistics
+    computed once on the stacked ``(models, B, 3)`` illuminants (one copy of the metrics in a
+    compiled sweep program, whatever the number of methods)."""
+    e = jnp.stack([estimate.illuminant for estimate in estimates])
+    truth = scenes.illuminant
     map_rg, map_rgb = metrics.mapping_errors(e, scenes.rgb, scenes.mask, scenes.canonical_rgb, canonical_white)
-    return {
+    statistics = {
         "angular": metrics.angular_error(e, truth),
         "rg": metrics.rg_error(e, truth),
         "rgb": metrics.rgb_error(e, truth),
         "brightness": metrics.brightness_error(e, truth),
         "map_rg": map_rg,
         "map_rgb": map_rgb,
-        "ok": estimate.ok,
-        "status": estimate.status,
     }
+    return [
+        {**{name: value[slot] for name, value in statistics.items()}, "ok": estimate.ok, "status": estimate.status}
+        for slot, estimate in enumerate(estimates)
+    ]
 
 
 def sampling_error(errors, summary: str = "rms") -> float:
@@ -127,19 +137,20 @@ def _sample(tables, keys, n_surfaces, size, specular, noise, clip) -> Scenes:
 
 @eqx.filter_jit
 def _errors(models, scenes, canonical_white):
-    return [scene_errors(model, scenes, canonical_white) for model in models]
+    estimates = [estimate_batch(model, scenes.rgb, scenes.mask) for model in models]
+    return _estimate_errors(estimates, scenes, canonical_white)
 
 
-def _grid_options(tree, found: list[GridOptions]) -> list[GridOptions]:
-    """Every :class:`GridOptions` held by a model (static fields included), depth first."""
-    if isinstance(tree, GridOptions):
+def _instances(tree, kind: type, found: list) -> list:
+    """Every instance of ``kind`` held by a model (static fields included), depth first."""
+    if isinstance(tree, kind):
         found.append(tree)
     elif isinstance(tree, eqx.Module):
         for item in dataclasses.fields(tree):
-            _grid_options(getattr(tree, item.name, None), found)
+            _instances(getattr(tree, item.name, None), kind, found)
     elif isinstance(tree, (list, tuple)):
         for item in tree:
-            _grid_options(item, found)
+            _instances(item, kind, found)
     return found
 
 
@@ -152,10 +163,13 @@ def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -
     branch on the scene's size. The gamut engine has such branches (at its observation budgets,
     :class:`~ccjax.estimators.gamut.engine.GridOptions`: ``fine_observations``,
     ``locate_observations``, ``large_scene``, ``exact_scene``), so counts are grouped between
-    consecutive budgets, and within a group into buckets spanning at most :data:`MAX_PADDING`,
-    each padded to its largest count: a padded scene takes every branch its unpadded self takes.
-    Counts above every budget are not padded (the kernel's cost grows with the size). Without
-    such models nothing is padded.
+    consecutive budgets and padded within a group only: a padded scene takes every branch its
+    unpadded self takes. Below the smallest budget the 3-D engine reads only a scene's usable
+    observations (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`), so padding costs it
+    almost nothing and that group is padded to its largest count; other groups, and every group
+    when a sweep holds a grid model that reads every slot (CIP), are split into buckets spanning
+    at most :data:`MAX_PADDING`, each padded to its largest count. Counts above every budget are
+    not padded (the kernel's cost grows with the size). Without such models nothing is padded.
 
     Arguments:
         surfaces: the sweep's surface counts.
@@ -164,11 +178,12 @@ def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -
     Returns:
         ``count -> padded size`` (``>= count``).
     """
+    grids = [options for model in models for options in _instances(model, GridOptions, [])]
+    engines = [engine for model in models for engine in _instances(model, GamutModel, [])]
     limits = sorted(
         {
             limit
-            for model in models
-            for options in _grid_options(model, [])
+            for options in grids
             for limit in (
                 options.fine_observations,
                 options.locate_observations,
@@ -180,16 +195,19 @@ def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -
     )
     if not limits:
         return {n: n for n in surfaces}
+    # Every grid belongs to a 3-D engine (one GridOptions each): the smallest group pads freely.
+    counted = len(engines) == len(grids)
     groups: dict[int, list[int]] = {}
     for n in sorted(set(surfaces)):
         above = [limit for limit in limits if limit >= n]
         groups.setdefault(above[0] if above else -n, []).append(n)
     sizes = {}
-    for group in groups.values():
-        # A padded scene costs what its padded size costs (the gamut kernel is linear in the
-        # observations), so a bucket spans at most a factor MAX_PADDING: 4 and 8 share a program,
-        # 4 and 32 do not (measured: ND-ECRULE-MV compiles in ~6 s CPU and runs 1000 scenes of 32
-        # surfaces in ~7 s, so padding 4 -> 32 costs more than the compile it saves).
+    for limit, group in groups.items():
+        if counted and limit == limits[0]:
+            sizes.update({n: group[-1] for n in group})
+            continue
+        # A padded scene costs what its padded size costs where every slot is read (the
+        # reduction of large scenes, CIP), so a bucket spans at most a factor MAX_PADDING.
         bucket: list[int] = []
         for n in group + [0]:
             if bucket and (n == 0 or n > MAX_PADDING * bucket[0]):

@@ -28,15 +28,15 @@ def hard(model, grid: Grid, mask_violation, level, feasible: Bool[Array, " G"], 
 
     def objective(rg):
         u, v, valid = directions(rg)
-        inverse = inverse_extent(v, grid.observations)
-        _, surface, illuminant, cone = violations(model, v, valid, grid.observations)
+        inverse = inverse_extent(v, grid.observations, grid.count)
+        _, surface, illuminant, cone = violations(model, v, valid, grid.observations, grid.count)
         inside = valid & (mask_violation(surface, illuminant, cone) <= level) & (inverse > 0)
         value = log_volume(-jnp.log(jnp.where(inside, inverse, 1.0)), u)
         return jnp.where(inside, value, -jnp.inf)
 
     centre = pattern_search(objective, start, grid.step / 2, model.options.refine_steps)
     u, v, _ = directions(centre[None])
-    return u[0] * inverse_extent(v, grid.observations)[0]
+    return u[0] * inverse_extent(v, grid.observations, grid.count)[0]
 
 
 def soft(u: Float[Array, "G 3"], log_t, inverse, log_mask, beta: float) -> Float[Array, "3"]:
