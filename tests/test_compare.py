@@ -133,26 +133,30 @@ def test_padded_sizes_never_cross_an_engine_budget(default_world):
     assert sweeps.padded_sizes([4, 8], []) == {4: 4, 8: 8}
 
 
-@pytest.mark.parametrize(
-    "methods",
-    [
-        ("GW", "shades-of-grey-p6", "RETINEX", "C-by-C-MMSE"),
-        # the gamut engine branches on the scene size (compiles for 40 s under load: slow)
-        pytest.param(("ECRULE-MV", "ND-ECRULE-MV"), marks=pytest.mark.slow),
-    ],
-)
-def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path, methods):
+@pytest.mark.slow  # compiles the gamut engine for three scene sizes (about 40 s under load)
+def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path):
+    # With a gamut model in the sweep, 4, 8 and 32 surfaces share one program of 32 slots.
     monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
+    methods = ("GW", "shades-of-grey-p6", "RETINEX", "C-by-C-MMSE", "ND-ECRULE-MV")
+    counts = (4, 8, 32)
     key = jax.random.key(3)
-    padded = sweeps.sweep(default_world, list(methods), (4, 8), 24, key, progress=False)
+    models = [sweeps.fit_label(method, default_world)[0] for method in methods]
+    assert {sweeps.padded_sizes(counts, models)[n] for n in counts} == {32}
+    padded = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)
     monkeypatch.setattr(sweeps, "padded_sizes", lambda surfaces, models: {n: n for n in surfaces})
-    plain = sweeps.sweep(default_world, list(methods), (4, 8), 24, key, progress=False)
+    plain = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)
     for method in methods:
-        for n in (4, 8):
+        for n in counts:
             for name, value in plain.errors[method][n].items():
                 got = padded.errors[method][n][name]
                 if name in ("ok", "status"):
                     np.testing.assert_array_equal(got, value)
+                elif method.startswith("ND-"):
+                    # Programs of other shapes round differently in the last bit, and MV's pattern
+                    # search can follow another path from there (measured on 1,000 scenes: up to
+                    # 4e-5 in (r,g), 0.006 degrees).
+                    atol = 0.02 if name == "angular" else 1e-4
+                    np.testing.assert_allclose(got, value, rtol=0, atol=atol, err_msg=f"{method} {n} {name}")
                 else:
                     # float32 sums over a longer (zero-padded) axis: a few ulps at most; the angle
                     # (degrees, through arccos) amplifies them to ~2e-6 degrees.

@@ -65,28 +65,19 @@ def scene_errors(model: AbstractEstimator, scenes, canonical_white) -> dict[str,
         :data:`STATISTICS` names -> ``(B,)`` errors, ``"ok"`` and ``"status"`` (the
         :class:`~ccjax.estimators.base.Status` codes).
     """
-    return _estimate_errors([estimate_batch(model, scenes.rgb, scenes.mask)], scenes, canonical_white)[0]
-
-
-def _estimate_errors(estimates: Sequence[base.Estimate], scenes, canonical_white) -> list[dict[str, jax.Array]]:
-    """:func:`scene_errors` of several models' estimates of the same scenes, the statistics
-    computed once on the stacked ``(models, B, 3)`` illuminants (one copy of the metrics in a
-    compiled sweep program, whatever the number of methods)."""
-    e = jnp.stack([estimate.illuminant for estimate in estimates])
-    truth = scenes.illuminant
+    estimate = estimate_batch(model, scenes.rgb, scenes.mask)
+    e, truth = estimate.illuminant, scenes.illuminant
     map_rg, map_rgb = metrics.mapping_errors(e, scenes.rgb, scenes.mask, scenes.canonical_rgb, canonical_white)
-    statistics = {
+    return {
         "angular": metrics.angular_error(e, truth),
         "rg": metrics.rg_error(e, truth),
         "rgb": metrics.rgb_error(e, truth),
         "brightness": metrics.brightness_error(e, truth),
         "map_rg": map_rg,
         "map_rgb": map_rgb,
+        "ok": estimate.ok,
+        "status": estimate.status,
     }
-    return [
-        {**{name: value[slot] for name, value in statistics.items()}, "ok": estimate.ok, "status": estimate.status}
-        for slot, estimate in enumerate(estimates)
-    ]
 
 
 def sampling_error(errors, summary: str = "rms") -> float:
@@ -137,8 +128,7 @@ def _sample(tables, keys, n_surfaces, size, specular, noise, clip) -> Scenes:
 
 @eqx.filter_jit
 def _errors(models, scenes, canonical_white):
-    estimates = [estimate_batch(model, scenes.rgb, scenes.mask) for model in models]
-    return _estimate_errors(estimates, scenes, canonical_white)
+    return [scene_errors(model, scenes, canonical_white) for model in models]
 
 
 def _instances(tree, kind: type, found: list) -> list:
@@ -157,7 +147,9 @@ def _instances(tree, kind: type, found: list) -> list:
 def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -> dict[int, int]:
     """The scene size each surface count is padded to, so that several counts share one compiled
     program (compilation is most of a cold sweep's time) and every estimate stays what it is
-    unpadded.
+    unpadded, up to rounding: a program of another shape can round in the last bit, which MV's
+    pattern search can follow to a slightly different point (measured, ND-ECRULE-MV on 1,000
+    scenes of 4 surfaces padded to 32: 19 % of scenes differ, by at most 4e-5 in (r,g) error).
 
     Padding adds masked-out surfaces, which no estimator uses; what could change is a Python
     branch on the scene's size. The gamut engine has such branches (at its observation budgets,
