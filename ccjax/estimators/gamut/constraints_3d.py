@@ -399,7 +399,7 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
         illuminant=illuminant,
         cone=cone,
         observations=reduced,
-        count=used,
+        count=used if reduced is everything else None,  # a reduced scene's MV keeps the full scan
         step=step,
         exact=exact,
         usable=jnp.any(usable),
