@@ -157,8 +157,9 @@ def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -
     ``locate_observations``, ``large_scene``, ``exact_scene``), so counts are grouped between
     consecutive budgets and padded within a group only: a padded scene takes every branch its
     unpadded self takes. Below the smallest budget the 3-D engine reads only a scene's usable
-    observations (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`), so padding costs it
-    almost nothing and that group is padded to its largest count; other groups, and every group
+    observations (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`, in scenes of 16 slots
+    or more; smaller ones cost little whatever they hold), so padding costs it almost nothing and
+    that group is padded to its largest count; other groups, and every group
     when a sweep holds a grid model that reads every slot (CIP), are split into buckets spanning
     at most :data:`MAX_PADDING`, each padded to its largest count. Counts above every budget are
     not padded (the kernel's cost grows with the size). Without such models nothing is padded.
