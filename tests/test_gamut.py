@@ -296,15 +296,11 @@ def test_masked_slots_anywhere_are_never_read(default_world, models, run_all):
     rgb, mask = _scene(default_world, 21)
     assert mask.all()
     rng = np.random.default_rng(4)
-    junk = rng.uniform(-3.0, 50.0, (2, 32, 3)).astype(np.float32)
-    leading, scattered = junk.copy(), junk.copy()
-    leading[0, :8], leading[1, :8] = rgb, rgb
+    batch = rng.uniform(-3.0, 50.0, (2, 32, 3)).astype(np.float32)  # junk in the masked slots
     slots = np.sort(rng.choice(32, 8, replace=False))
-    scattered[0, slots] = rgb
+    batch[0, slots], batch[1, :8] = rgb, rgb
     masks = np.zeros((2, 32), bool)
-    masks[0, slots] = True
-    masks[1, :8] = True
-    batch = np.stack([scattered[0], leading[1]])
+    masks[0, slots], masks[1, :8] = True, True
     out = run_all(model, batch, masks)
     for name in SELECTORS_E:
         e = np.asarray(out[name].illuminant)
