@@ -125,6 +125,8 @@ def test_padded_sizes_never_cross_an_engine_budget(default_world):
     # Below the smallest budget the 3-D engine reads only the usable observations: one program.
     alone = sweeps.padded_sizes(surfaces, [engine])
     assert {alone[n] for n in (1, 4, 8, 16, 32)} == {32}
+    # ... in scenes of at least COUNTED_SLOTS slots; below, padding costs what it adds.
+    assert sweeps.padded_sizes([4, 8, 12], [engine]) == {4: 8, 8: 8, 12: 12}
     # CIP reads every slot: buckets within a factor MAX_PADDING.
     mixed = sweeps.padded_sizes(surfaces, [engine, cip])
     assert all(size <= sweeps.MAX_PADDING * n for n, size in mixed.items())

@@ -24,6 +24,7 @@ from ccjax import metrics
 from ccjax._cache import cached_model, code_fingerprint, content_key, read_arrays, write_arrays
 from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
+from ccjax.estimators.gamut.constraints_3d import COUNTED_SLOTS
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.estimators.gamut.model import GamutModel
 from ccjax.experiments.reports import Column, Report
@@ -157,9 +158,9 @@ def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -
     ``locate_observations``, ``large_scene``, ``exact_scene``), so counts are grouped between
     consecutive budgets and padded within a group only: a padded scene takes every branch its
     unpadded self takes. Below the smallest budget the 3-D engine reads only a scene's usable
-    observations (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`, in scenes of 16 slots
-    or more; smaller ones cost little whatever they hold), so padding costs it almost nothing and
-    that group is padded to its largest count; other groups, and every group
+    observations (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`, in scenes of at least
+    ``COUNTED_SLOTS`` slots), so padding costs it almost nothing and that group is padded to its
+    largest count when that count reaches ``COUNTED_SLOTS``; other groups, and every group
     when a sweep holds a grid model that reads every slot (CIP), are split into buckets spanning
     at most :data:`MAX_PADDING`, each padded to its largest count. Counts above every budget are
     not padded (the kernel's cost grows with the size). Without such models nothing is padded.
@@ -196,7 +197,7 @@ def padded_sizes(surfaces: Sequence[int], models: Sequence[AbstractEstimator]) -
         groups.setdefault(above[0] if above else -n, []).append(n)
     sizes = {}
     for limit, group in groups.items():
-        if counted and limit == limits[0]:
+        if counted and limit == limits[0] and group[-1] >= COUNTED_SLOTS:
             sizes.update({n: group[-1] for n in group})
             continue
         # A padded scene costs what its padded size costs where every slot is read (the
