@@ -375,3 +375,43 @@ def test_materials_run_under_x64(default_world):
         images = scenes.sample_mondrians(jax.random.key(1), default_world, 2, height=16, width=16, **options)
     assert batch.rgb.dtype == images.image.dtype == np.float32
     assert np.isfinite(np.asarray(batch.rgb)).all() and np.isfinite(np.asarray(images.image)).all()
+
+
+SLOTTED_OPTIONS = {
+    "plain": {},
+    "specular": {"specular": Specular()},
+    "noise": {"noise": ShotNoise()},
+    "clip": {"clip": 0.6},
+    "noise+clip": {"noise": ShotNoise(), "clip": 0.6},
+    "metallic": {"metallic": scenes.Metallic()},
+    "fluorescent": {"fluorescent": scenes.Fluorescent()},
+    "all": {
+        "specular": Specular(),
+        "noise": ShotNoise(),
+        "clip": 0.9,
+        "metallic": scenes.Metallic(),
+        "fluorescent": scenes.Fluorescent(),
+    },
+}
+
+
+@pytest.mark.parametrize("options", SLOTTED_OPTIONS, ids=list(SLOTTED_OPTIONS))
+@pytest.mark.parametrize(("n_surfaces", "slots"), [(4, 32), (32, 32), (64, 128), (100, 128)])
+def test_slotted_sampler_is_the_padded_sampler(material_tables, options, n_surfaces, slots):
+    """One program for every count (a sweep's shared sampler) gives `sample_batch`'s scenes in
+    the leading slots (the random bits of a longer draw extend a shorter one's) and masked-out
+    zeros after them; bitwise with one option at a time (combined options may round the sums
+    of highlights differently in another program)."""
+    keys = scene_keys(jax.random.key(23), 0, 200)
+    kwargs = SLOTTED_OPTIONS[options]
+    want = sample_batch(keys, material_tables, n_surfaces, **kwargs)
+    got = scenes.sample_batch_slots(keys, material_tables, np.int32(n_surfaces), slots, **kwargs)
+    assert got.rgb.shape == (200, slots, 3) and got.mask.shape == (200, slots)
+    np.testing.assert_array_equal(np.asarray(got.illuminant), np.asarray(want.illuminant))
+    np.testing.assert_array_equal(np.asarray(got.mask[:, :n_surfaces]), np.asarray(want.mask))
+    bitwise = options not in ("noise+clip", "all")
+    same = np.testing.assert_array_equal if bitwise else lambda a, b: np.testing.assert_allclose(a, b, 2e-6)
+    same(np.asarray(got.rgb[:, :n_surfaces]), np.asarray(want.rgb))
+    same(np.asarray(got.canonical_rgb[:, :n_surfaces]), np.asarray(want.canonical_rgb))
+    assert not np.any(np.asarray(got.mask[:, n_surfaces:]))
+    assert not np.any(np.asarray(got.rgb[:, n_surfaces:])) and not np.any(np.asarray(got.canonical_rgb[:, n_surfaces:]))

@@ -28,7 +28,7 @@ from ccjax.estimators.gamut.constraints_3d import COUNTED_SLOTS
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.estimators.gamut.model import GamutModel
 from ccjax.experiments.reports import Column, Report
-from ccjax.scenes import Scenes, SceneTables, resolve_options, sample_batch, scene_keys
+from ccjax.scenes import Scenes, SceneTables, resolve_options, sample_batch, sample_batch_slots, scene_keys
 from ccjax.world import World
 
 STATISTICS = ("angular", "rg", "rgb", "brightness", "map_rg", "map_rgb")
@@ -115,8 +115,9 @@ def sampling_error(errors, summary: str = "rms") -> float:
 
 
 @eqx.filter_jit
-def _sample(tables, keys, n_surfaces, size, specular, noise, clip) -> Scenes:
-    """Scenes of ``n_surfaces`` surfaces, padded with masked-out surfaces to ``size``."""
+def _padded_sample(keys, tables, n_surfaces, size, specular, noise, clip) -> Scenes:
+    """Scenes of ``n_surfaces`` surfaces (static), padded with masked-out surfaces to ``size``
+    (one program per count; the sweep's sampler when counts cannot share one)."""
     scenes = sample_batch(keys, tables, n_surfaces, specular, noise, clip)
     pad = size - n_surfaces
     return Scenes(
@@ -656,13 +657,22 @@ def sweep(
         leave=False,
     )
 
+    # One sampler program per (padded size, chunk size) when counts can share it: the scenes of
+    # `sample_batch_slots` extend a shorter draw's random bits, which needs partitionable threefry.
+    shared_sampler = bool(jax.config.jax_threefry_partitionable)  # pyright: ignore[reportAttributeAccessIssue]
+
     def chunk_scenes(n: int, size: int, index: int) -> Scenes:
         # Every chunk has the same shape (the last is padded with later scenes of the stream and
         # trimmed), so the estimators compile once per (padded size, chunk size).
         keys = scene_keys(jax.random.fold_in(key, n), index * size, size)
         if sharding is not None:
             keys = jax.device_put(keys, sharding)
-        return _sample(tables, keys, n, sizes[n], specular, noise, clip)
+        count = jnp.asarray(n, jnp.int32) if shared_sampler else n
+        sampler = sample_batch_slots if shared_sampler else _padded_sample
+        return sampler(keys, tables, count, sizes[n], specular, noise, clip)
+
+    def sampler_key(n: int, size: int) -> tuple:
+        return (sizes[n], size) if shared_sampler else (n, size)
 
     x64 = bool(jax.config.read("jax_enable_x64"))
 
@@ -672,33 +682,40 @@ def sweep(
             chunk_scenes(n, size, 0)
 
     def compile_errors(n: int, size: int, positions: list[int]):
-        """Compile count ``n``'s sampler and the errors program of its padded size."""
+        """Compile the errors program of count ``n``'s padded size: on one device from zeros of the
+        scenes' shapes, so it does not wait for the sampler to compile; sharded, from the first
+        chunk (whose layout the sampler decides)."""
         with jax.enable_x64(x64):
-            scenes = chunk_scenes(n, size, 0)
+            if sharding is None:
+                shapes = jax.eval_shape(lambda: chunk_scenes(n, size, 0))
+                scenes = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
+            else:
+                scenes = chunk_scenes(n, size, 0)
             return _errors.lower([models[p] for p in positions], scenes, tables.canonical_white).compile()
 
-    # Compilation is most of a cold sweep: two worker threads trace and compile the counts'
-    # programs in order (each distinct program once: counts padded alike share it) while this
-    # thread runs those already compiled (XLA compiles and runs without holding the GIL), so
-    # compiling overlaps running, and two programs compile at once.
+    # Compilation is most of a cold sweep: two worker threads trace and compile the programs in
+    # the order they are first needed, each distinct one once (counts padded alike share their
+    # errors program and their sampler), while this thread runs those already compiled (XLA
+    # compiles and runs without holding the GIL), so compiling overlaps running, and two
+    # programs compile at once.
     # (Measured on 2 cores, the default `ccjax compare` cold: 52 s compiling in sequence, 45 s with
     # one worker; two workers against one, interleaved on a slower phase of the same machine:
     # 78.9 and 68.4 s against 79.9 and 79.3 s.)
     compiler = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="ccjax-compile")
     try:
         programs: dict[tuple, concurrent.futures.Future] = {}
-        samplers: dict[int, concurrent.futures.Future] = {}
+        samplers: dict[tuple, concurrent.futures.Future] = {}
         for n, size, _ in plan:
             if todo[n]:
                 program_key = (sizes[n], size, tuple(todo[n]))
-                if program_key in programs:
-                    samplers[n] = compiler.submit(compile_sampler, n, size)
-                else:
-                    programs[program_key] = samplers[n] = compiler.submit(compile_errors, n, size, todo[n])
+                if program_key not in programs:
+                    programs[program_key] = compiler.submit(compile_errors, n, size, todo[n])
+                if sampler_key(n, size) not in samplers:
+                    samplers[sampler_key(n, size)] = compiler.submit(compile_sampler, n, size)
         for n, size, chunks in plan:
             positions = todo[n]
             if positions:
-                samplers[n].result()
+                samplers[sampler_key(n, size)].result()
                 program = programs[sizes[n], size, tuple(positions)].result()
                 chosen = [models[p] for p in positions]
                 collected: list[list[dict]] = []

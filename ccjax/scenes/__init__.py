@@ -35,6 +35,7 @@ from ccjax.scenes.surfaces import resolve_materials as resolve_materials
 from ccjax.scenes.surfaces import resolve_options as resolve_options
 from ccjax.scenes.surfaces import sample as sample
 from ccjax.scenes.surfaces import sample_batch as sample_batch
+from ccjax.scenes.surfaces import sample_batch_slots as sample_batch_slots
 from ccjax.scenes.surfaces import sample_one as sample_one
 from ccjax.scenes.surfaces import scene_keys as scene_keys
 from ccjax.scenes.surfaces import sweep_keys as sweep_keys

@@ -243,31 +243,50 @@ def _metal_table(metals, dtype) -> Float[Array, "M 101"]:
     return jnp.asarray(spectra, dtype=dtype)
 
 
-def draw_without_replacement(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, " P"]:
+def draw_without_replacement(
+    key: PRNGKeyArray, n_population: int, n_draws: int | Int[Array, ""], slots: int | None = None
+) -> Int[Array, " P"]:
     """``n_draws`` distinct indices into ``0 .. n_population - 1``, uniformly (Barnard 1999 §4.7:
     the surfaces of a scene are distinct).
 
     Arguments:
         key: a ``jax.random`` key.
         n_population: number of items to draw from.
-        n_draws: number of distinct draws (static).
+        n_draws: number of distinct draws: static, or with ``slots`` a traced count (at most ``slots``).
+        slots: static length of the result: its first ``n_draws`` entries are the draws, the
+            others 0 (one compiled program for every count up to ``slots``). The draws are those
+            of ``slots=None``, bitwise: JAX's partitionable threefry gives a longer shape's random
+            bits as an extension of a shorter one's.
 
     Returns:
-        ``(n_draws,)`` int32 indices.
+        ``(n_draws,)`` (or ``(slots,)``) int32 indices.
     """
-    if n_draws <= _FLOYD_MAX_SURFACES:
-        # Floyd's algorithm: step i draws t in [0, n - P + i]; a repeat is replaced by n - P + i.
-        ceilings = n_population - n_draws + jnp.arange(n_draws, dtype=jnp.int32)
-        uniform = jax.random.uniform(key, (n_draws,))
-        draws = jnp.floor(uniform * (ceilings + 1).astype(uniform.dtype)).astype(jnp.int32)
-        draws = jnp.minimum(draws, ceilings)
+    if slots is None:
+        n = operator.index(n_draws)
+        return _floyd(key, n_population, n, n) if n <= _FLOYD_MAX_SURFACES else _top_k(key, n_population, n)
+    drawn = _floyd(key, n_population, n_draws, slots)
+    if slots > _FLOYD_MAX_SURFACES:
+        drawn = jnp.where(n_draws <= _FLOYD_MAX_SURFACES, drawn, _top_k(key, n_population, slots))
+    return jnp.where(jnp.arange(slots) < n_draws, drawn, 0)
 
-        def step(i, chosen):
-            taken = jnp.any((chosen == draws[i]) & (jnp.arange(n_draws) < i))
-            return chosen.at[i].set(jnp.where(taken, ceilings[i], draws[i]))
 
-        return jax.lax.fori_loop(0, n_draws, step, jnp.full((n_draws,), -1, jnp.int32))
-    # Gumbel top-k: the P largest of S iid uniforms form a uniform P-subset.
+def _floyd(key: PRNGKeyArray, n_population: int, n_draws, slots: int) -> Int[Array, " P"]:
+    # Floyd's algorithm: step i draws t in [0, n - P + i]; a repeat is replaced by n - P + i.
+    ceilings = n_population - n_draws + jnp.arange(slots, dtype=jnp.int32)
+    uniform = jax.random.uniform(key, (slots,))
+    draws = jnp.floor(uniform * (ceilings + 1).astype(uniform.dtype)).astype(jnp.int32)
+    draws = jnp.minimum(draws, ceilings)
+
+    def step(i, chosen):
+        taken = jnp.any((chosen == draws[i]) & (jnp.arange(slots) < i))
+        return chosen.at[i].set(jnp.where(taken, ceilings[i], draws[i]))
+
+    return jax.lax.fori_loop(0, n_draws, step, jnp.full((slots,), -1, jnp.int32))
+
+
+def _top_k(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, " P"]:
+    # Gumbel top-k: the P largest of S iid uniforms form a uniform P-subset (in decreasing order,
+    # so the first P of a larger k are the same P).
     return jax.lax.top_k(jax.random.uniform(key, (n_population,)), n_draws)[1].astype(jnp.int32)
 
 
@@ -288,7 +307,9 @@ def _scene_subkeys(key: PRNGKeyArray) -> SceneKeys:
     return jax.random.split(key, 5)
 
 
-def draw_scene(key: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces: int) -> SceneDraw:
+def draw_scene(
+    key: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces: int | Int[Array, ""], slots: int | None = None
+) -> SceneDraw:
     """Draw the light and the surfaces of ONE scene from its per-scene key (Barnard 1999 §4.7).
 
     This is the one place scenes are drawn: :func:`sample_one` (hence :func:`sample`,
@@ -299,14 +320,15 @@ def draw_scene(key: PRNGKeyArray, n_lights: int, n_reflectances: int, n_surfaces
         key: the scene's key (e.g. one of :func:`scene_keys`).
         n_lights: number of lights to draw from.
         n_reflectances: number of reflectances to draw from.
-        n_surfaces: surfaces per scene (static), drawn without replacement.
+        n_surfaces: surfaces per scene (static; traced with ``slots``), drawn without replacement.
+        slots: static number of surface slots (:func:`draw_without_replacement`).
 
     Returns:
         :class:`SceneDraw` without a batch axis.
     """
     key_light, key_surf = _scene_subkeys(key)[:2]
     light = jax.random.randint(key_light, (), 0, n_lights)
-    return SceneDraw(light=light, surfaces=draw_without_replacement(key_surf, n_reflectances, n_surfaces))
+    return SceneDraw(light=light, surfaces=draw_without_replacement(key_surf, n_reflectances, n_surfaces, slots))
 
 
 def draw_scenes(keys: SceneKeys, n_lights: int, n_reflectances: int, n_surfaces: int) -> SceneDraw:
@@ -325,12 +347,13 @@ def draw_scenes(keys: SceneKeys, n_lights: int, n_reflectances: int, n_surfaces:
 def sample_one(
     key: PRNGKeyArray,
     tables: SceneTables,
-    n_surfaces: int,
+    n_surfaces: int | Int[Array, ""],
     specular: Specular | None = None,
     noise: ShotNoise | None = None,
     clip: float | None = None,
     metallic: Metallic | None = None,
     fluorescent: Fluorescent | None = None,
+    slots: int | None = None,
 ) -> Scenes:
     """One scene from a per-scene key (fields without the batch axis); vmap it for batches.
 
@@ -338,10 +361,16 @@ def sample_one(
     light and under the canonical one), then dielectric and metallic highlights are added, then
     noise, then clipping. ``metallic`` needs ``tables.metal_rgb``, ``fluorescent``
     ``tables.fluorescent_rgb`` (see :meth:`SceneTables.from_world`).
+
+    With ``slots`` (static), the scene has ``slots`` surface slots of which the first
+    ``n_surfaces`` (then possibly traced) are the scene's and the others zero and masked out:
+    the same scene, bitwise, as without ``slots`` padded with masked-out zeros (every draw's
+    random bits for a longer shape extend a shorter one's), from one program for every count.
     """
     require_tables(tables, metallic, fluorescent)
     n_lights, n_reflectances, _ = tables.surface_rgb.shape
-    drawn = draw_scene(key, n_lights, n_reflectances, n_surfaces)
+    drawn = draw_scene(key, n_lights, n_reflectances, n_surfaces, slots)
+    n_slots = operator.index(n_surfaces) if slots is None else slots
     light, surfaces = drawn.light, drawn.surfaces
     key_spec, key_amount, key_noise = _scene_subkeys(key)[2:]
     white = tables.whites[light]
@@ -350,14 +379,14 @@ def sample_one(
     if fluorescent is not None:
         assert tables.fluorescent_rgb is not None and tables.canonical_fluorescent_rgb is not None
         key_which, key_identity = jax.random.split(jax.random.fold_in(key, FLUORESCENT_STREAM))
-        is_fluorescent = jax.random.uniform(key_which, (n_surfaces,)) < fluorescent.probability
-        identity = jax.random.randint(key_identity, (n_surfaces,), 0, tables.fluorescent_rgb.shape[1])
+        is_fluorescent = jax.random.uniform(key_which, (n_slots,)) < fluorescent.probability
+        identity = jax.random.randint(key_identity, (n_slots,), 0, tables.fluorescent_rgb.shape[1])
         rgb = jnp.where(is_fluorescent[:, None], tables.fluorescent_rgb[light, identity], rgb)
         canonical = jnp.where(is_fluorescent[:, None], tables.canonical_fluorescent_rgb[identity], canonical)
     if specular is not None:
-        is_specular = jax.random.uniform(key_spec, (n_surfaces,)) < specular.probability
+        is_specular = jax.random.uniform(key_spec, (n_slots,)) < specular.probability
         # Draws in the tables' dtype (float32 tables under jax_enable_x64 must not meet float64 draws).
-        draw = jax.random.uniform(key_amount, (n_surfaces,), rgb.dtype)
+        draw = jax.random.uniform(key_amount, (n_slots,), rgb.dtype)
         amount = jnp.where(is_specular, draw * specular.max_amount, 0.0)
         rgb = rgb + amount[:, None] * white
         canonical = canonical + amount[:, None] * tables.canonical_white
@@ -365,18 +394,21 @@ def sample_one(
         # §8.3 / A11: S' = S + s M, s ~ U(0, max_amount), M uniform over the tables' metals.
         assert tables.metal_rgb is not None and tables.canonical_metal_rgb is not None
         key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
-        is_metal = jax.random.uniform(key_which, (n_surfaces,)) < metallic.probability
-        metal = jax.random.randint(key_metal, (n_surfaces,), 0, tables.metal_rgb.shape[1])
-        draw = jax.random.uniform(key_strength, (n_surfaces,), rgb.dtype)
+        is_metal = jax.random.uniform(key_which, (n_slots,)) < metallic.probability
+        metal = jax.random.randint(key_metal, (n_slots,), 0, tables.metal_rgb.shape[1])
+        draw = jax.random.uniform(key_strength, (n_slots,), rgb.dtype)
         strength = jnp.where(is_metal, draw * metallic.max_amount, 0.0)
         rgb = rgb + strength[:, None] * tables.metal_rgb[light, metal]
         canonical = canonical + strength[:, None] * tables.canonical_metal_rgb[metal]
     if noise is not None:
         sigma = jnp.sqrt(noise.a * rgb + noise.b)
         rgb = jnp.maximum(rgb + sigma * jax.random.normal(key_noise, rgb.shape, rgb.dtype), 0.0)
-    mask = jnp.ones((n_surfaces,), bool)
+    mask = jnp.ones((n_slots,), bool)
     if clip is not None:
         mask = jnp.all(rgb <= clip, axis=-1)
+    if slots is not None:
+        live = jnp.arange(slots) < n_surfaces
+        rgb, canonical, mask = jnp.where(live[:, None], rgb, 0.0), jnp.where(live[:, None], canonical, 0.0), mask & live
     return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
 
 
@@ -406,6 +438,29 @@ def sample_batch(
 ) -> Scenes:
     """Scenes for a batch of per-scene keys ``(B,)`` (the sweep engine's entry point)."""
     return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip, metallic, fluorescent))(keys)
+
+
+@partial(jax.jit, static_argnames=("slots", "specular", "noise", "clip", "metallic", "fluorescent"))
+def sample_batch_slots(
+    keys: SceneKeys,
+    tables: SceneTables,
+    n_surfaces: Int[ArrayLike, ""],
+    slots: int,
+    specular: Specular | None = None,
+    noise: ShotNoise | None = None,
+    clip: float | None = None,
+    metallic: Metallic | None = None,
+    fluorescent: Fluorescent | None = None,
+) -> Scenes:
+    """:func:`sample_batch` in ``slots`` surface slots per scene: the first ``n_surfaces`` (a
+    traced count, ``1 <= n_surfaces <= slots``) are the scene's, the others zero and masked out.
+    The scenes are :func:`sample_batch`'s, bitwise, padded (:func:`sample_one` with ``slots``),
+    and one compiled program serves every count (a sweep's counts padded to one size share it).
+    Needs JAX's partitionable threefry (``jax_threefry_partitionable``, the default)."""
+    n_surfaces = jnp.asarray(n_surfaces, jnp.int32)
+    return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip, metallic, fluorescent, slots))(
+        keys
+    )
 
 
 def scene_keys(key: PRNGKeyArray, start: int, count: int) -> SceneKeys:
