@@ -288,7 +288,8 @@ def decode_tree(skeleton: Any, arrays: Mapping[str, np.ndarray]) -> Any:
         return skeleton
     if "$array" in skeleton:
         array = arrays[skeleton["$array"]]
-        return {"jax": jax.numpy.asarray, "numpy": np.asarray}.get(skeleton["kind"], lambda a: a[()])(array)
+        # device_put, not jnp.asarray: the latter compiles a small copy program per shape.
+        return {"jax": jax.device_put, "numpy": np.asarray}.get(skeleton["kind"], lambda a: a[()])(array)
     if "$enum" in skeleton:
         return _resolve(skeleton["$enum"])(skeleton["value"])
     if "$tuple" in skeleton:

@@ -12,6 +12,7 @@ import os
 from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -61,7 +62,7 @@ class Camera(eqx.Module):
             raise ValueError("sensors: contains negative sensitivities")
         if np.any(sensors.sum(axis=0) <= 0):
             raise ValueError("sensors: a channel has no sensitivity anywhere")
-        return cls(sensors=jnp.asarray(sensors, dtype=jnp.float32), name=name)
+        return cls(sensors=jax.device_put(np.asarray(sensors, np.float32)), name=name)
 
     @classmethod
     def from_colour(cls, sensitivities, name: str | None = None) -> Camera:

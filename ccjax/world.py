@@ -14,6 +14,7 @@ import os
 from dataclasses import dataclass
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -210,7 +211,8 @@ class World(eqx.Module):
         sensors = np.asarray(camera.sensors, dtype=np.float64)
         train = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TRAIN_CELL, seed=seed)
         test = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TEST_CELL, seed=seed + 1)
-        as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)
+        # Cast on the host and device_put: jnp.asarray compiles a small program per shape (start-up time).
+        as32 = lambda x: jax.device_put(np.asarray(x, np.float32))
         return cls(
             reflectances=as32(reflectances),
             train_illuminants=as32(train.spectra),

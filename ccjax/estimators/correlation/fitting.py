@@ -3,7 +3,7 @@ checks and defaults."""
 
 from __future__ import annotations
 
-import jax.numpy as jnp
+import jax
 import numpy as np
 from jaxtyping import Array, Float
 
@@ -41,7 +41,7 @@ def cached(kind: str, world: World, options: dict, compute) -> dict[str, np.ndar
 def illuminant_rg_of(world: World) -> Float[Array, "I 2"]:
     """``(I, 2)`` (r,g) of the training illuminants' whites (float64 products, float32 result)."""
     whites = np.asarray(world.train_illuminants, np.float64) @ np.asarray(world.camera.sensors, np.float64)
-    return jnp.asarray(rg_numpy(whites), jnp.float32)
+    return jax.device_put(np.asarray(rg_numpy(whites), np.float32))
 
 
 def resolve_specular(specular) -> Specular | None:

@@ -22,8 +22,12 @@ Stages, all with fixed shapes so the kernel jits and vmaps:
    model's domain of directions;
 2. *fine*: ``T`` and the violations on a ``fine_points x fine_points`` grid over that box. ``1/T``
    reads, in each block of ``certificate_tile`` directions, only the forms a bound over the block
-   cannot exclude (:func:`certified_inverse_extent`): typically a handful of the thousands, with
-   the same maximum at every valid direction.
+   cannot exclude (:func:`certified_inverse_extent`), with the same maximum at every valid
+   direction. How many it excludes depends on the scene (median kept, thesis world, CRULE: 4 of
+   3,744 forms in reduced 1,024-surface scenes, 807 of 2,496 at 64 surfaces, nearly all at 8; ND
+   gamut, default world: 7,418 of 7,872 at 32 surfaces). Measured against reading every form
+   (``certificate_tile=0``, the same estimates bitwise): CRULE-AVE 1.44x faster at 1,024
+   surfaces and 1.1x at 64, ND-ECRULE-MV about 0.9x at 8 and 32 surfaces.
 
 Scenes with many observations are first reduced to the observations that can matter: those
 extreme in chromaticity for locating (only chromaticities decide feasibility), and for the fine

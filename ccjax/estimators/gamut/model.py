@@ -13,7 +13,7 @@ from __future__ import annotations
 import typing
 
 import equinox as eqx
-import jax.numpy as jnp
+import jax
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
@@ -127,7 +127,8 @@ def fit(
         domain = np.stack([np.maximum(lo, 0.0), np.minimum(hi, 1.0)])
     else:
         domain = np.array([[0.0, 0.0], [1.0, 1.0]])
-    f32 = lambda x: jnp.asarray(x, jnp.float32)
+    # Cast on the host and device_put: jnp.asarray compiles a small program per shape (start-up time).
+    f32 = lambda x: jax.device_put(np.asarray(x, np.float32))
     return GamutModel(
         white=f32(white),
         origin_normals=f32(facets.origin_normals),
