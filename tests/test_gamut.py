@@ -663,3 +663,27 @@ def test_relaxed_scenes_equal_the_unreduced_engine(default_world):
                 rtol=1e-5,
                 err_msg=f"{constraint}-{name}",
             )
+
+
+@pytest.mark.parametrize("n_surfaces", [8, 32, 64])
+def test_mv_box_forms_keep_every_maximum_in_the_box(default_world, models, n_surfaces):
+    """MV's objective reads, inside a box around its start, only `mv.box_forms`' forms: at
+    random valid directions of the box, their maximum is the maximum over every top-facet form
+    (NumPy, float64, the same forms), and the certificate drops most forms (it is not a no-op)."""
+    from ccjax.estimators.gamut import mv
+
+    model = models[("ECRULE", "ND")]
+    rgb, mask = _scene(default_world, 41 + n_surfaces, n_surfaces)
+    grid = constraints_3d.evaluate(model, jnp.asarray(rgb), jnp.asarray(mask))
+    centre = np.asarray(grid.rg)[np.argmin(np.asarray(grid.surface))]
+    lo, hi = centre - 4 * np.asarray(grid.step), centre + 4 * np.asarray(grid.step)
+    order, kept = mv.box_forms(grid.observations, grid.count, jnp.asarray(lo), jnp.asarray(hi))
+    forms = np.asarray(grid.observations.top, np.float64).reshape(-1, 3)
+    if grid.count is not None:
+        forms = forms.reshape(-1, model.top_normals.shape[0], 3)[: int(grid.count)].reshape(-1, 3)
+    near = np.asarray(grid.observations.top, np.float64).reshape(-1, 3)[np.asarray(order)[: int(kept)]]
+    assert 0 < int(kept) < 0.5 * forms.shape[0]
+    rg = np.random.default_rng(0).uniform(lo, hi, size=(2000, 2))
+    u = np.concatenate([rg, 1 - rg.sum(axis=1, keepdims=True)], axis=1)
+    v = 1 / u[np.all(u > engine.EDGE, axis=1)]
+    np.testing.assert_array_equal((v @ near.T).max(axis=1), (v @ forms.T).max(axis=1))

@@ -415,3 +415,14 @@ def test_slotted_sampler_is_the_padded_sampler(material_tables, options, n_surfa
     same(np.asarray(got.canonical_rgb[:, :n_surfaces]), np.asarray(want.canonical_rgb))
     assert not np.any(np.asarray(got.mask[:, n_surfaces:]))
     assert not np.any(np.asarray(got.rgb[:, n_surfaces:])) and not np.any(np.asarray(got.canonical_rgb[:, n_surfaces:]))
+
+
+def test_slotted_sampler_runs_in_x64(material_tables):
+    """Under jax_enable_x64 (integer aranges are int64 there) the traced count still compares
+    without promotion, and the scenes are still the padded ones."""
+    with jax.enable_x64(True):
+        keys = scene_keys(jax.random.key(29), 0, 50)
+        for n_surfaces, slots in [(4, 32), (70, 128)]:
+            want = sample_batch(keys, material_tables, n_surfaces, Specular())
+            got = scenes.sample_batch_slots(keys, material_tables, np.int32(n_surfaces), slots, Specular())
+            np.testing.assert_array_equal(np.asarray(got.rgb[:, :n_surfaces]), np.asarray(want.rgb))

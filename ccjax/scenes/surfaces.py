@@ -267,7 +267,7 @@ def draw_without_replacement(
     drawn = _floyd(key, n_population, n_draws, slots)
     if slots > _FLOYD_MAX_SURFACES:
         drawn = jnp.where(n_draws <= _FLOYD_MAX_SURFACES, drawn, _top_k(key, n_population, slots))
-    return jnp.where(jnp.arange(slots) < n_draws, drawn, 0)
+    return jnp.where(jnp.arange(slots, dtype=jnp.int32) < n_draws, drawn, 0)
 
 
 def _floyd(key: PRNGKeyArray, n_population: int, n_draws, slots: int) -> Int[Array, " P"]:
@@ -278,7 +278,7 @@ def _floyd(key: PRNGKeyArray, n_population: int, n_draws, slots: int) -> Int[Arr
     draws = jnp.minimum(draws, ceilings)
 
     def step(i, chosen):
-        taken = jnp.any((chosen == draws[i]) & (jnp.arange(slots) < i))
+        taken = jnp.any((chosen == draws[i]) & (jnp.arange(slots, dtype=i.dtype) < i))
         return chosen.at[i].set(jnp.where(taken, ceilings[i], draws[i]))
 
     return jax.lax.fori_loop(0, n_draws, step, jnp.full((slots,), -1, jnp.int32))
@@ -407,7 +407,7 @@ def sample_one(
     if clip is not None:
         mask = jnp.all(rgb <= clip, axis=-1)
     if slots is not None:
-        live = jnp.arange(slots) < n_surfaces
+        live = jnp.arange(slots, dtype=jnp.int32) < n_surfaces
         rgb, canonical, mask = jnp.where(live[:, None], rgb, 0.0), jnp.where(live[:, None], canonical, 0.0), mask & live
     return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
 

@@ -313,10 +313,16 @@ def binding_forms(
         scale = centre[:, i, None] + half[:, i, None]
         bound = bound + gap * centre[:, i, None] + jnp.abs(gap) * half[:, i, None]
         bound = bound + CERTIFICATE_SLACK * (jnp.abs(coef[None, :, i]) + jnp.abs(star[:, i, None])) * scale
-    keep = live & jnp.any(occupied[:, None] & (bound > 0), axis=0)
-    kept = jnp.sum(keep, dtype=jnp.int32)
+    return leading(live & jnp.any(occupied[:, None] & (bound > 0), axis=0))
+
+
+def leading(keep: Bool[Array, " M"]) -> tuple[Int[Array, " M"], Int[Array, ""]]:
+    """Indices with the kept ones first, in order, and how many are kept (a stable partition,
+    without a sort)."""
+    total = keep.shape[0]
+    rows = jnp.arange(total, dtype=jnp.int32)
     order = jnp.zeros((total,), jnp.int32).at[jnp.where(keep, jnp.cumsum(keep) - 1, total)].set(rows, mode="drop")
-    return order, kept
+    return order, jnp.sum(keep, dtype=jnp.int32)
 
 
 def dot_minor(xt: Float[Array, "3 G"], coef: Float[Array, "M 3"]) -> Float[Array, "M G"]:
