@@ -364,8 +364,9 @@ def sample_one(
 
     With ``slots`` (static), the scene has ``slots`` surface slots of which the first
     ``n_surfaces`` (then possibly traced) are the scene's and the others zero and masked out:
-    the same scene, bitwise, as without ``slots`` padded with masked-out zeros (every draw's
-    random bits for a longer shape extend a shorter one's), from one program for every count.
+    the same scene as without ``slots`` padded with masked-out zeros (every draw's random bits
+    for a longer shape extend a shorter one's; see :func:`sample_batch_slots` for rounding),
+    from one program for every count.
     """
     require_tables(tables, metallic, fluorescent)
     n_lights, n_reflectances, _ = tables.surface_rgb.shape
@@ -454,9 +455,11 @@ def sample_batch_slots(
 ) -> Scenes:
     """:func:`sample_batch` in ``slots`` surface slots per scene: the first ``n_surfaces`` (a
     traced count, ``1 <= n_surfaces <= slots``) are the scene's, the others zero and masked out.
-    The scenes are :func:`sample_batch`'s, bitwise, padded (:func:`sample_one` with ``slots``),
-    and one compiled program serves every count (a sweep's counts padded to one size share it).
-    Needs JAX's partitionable threefry (``jax_threefry_partitionable``, the default)."""
+    The scenes are :func:`sample_batch`'s padded (:func:`sample_one` with ``slots``): bitwise with
+    at most one scene option, to float rounding with several (another program may round their
+    sums otherwise); and one compiled program serves every count (a sweep's counts padded to one
+    size share it). Needs JAX's partitionable threefry (``jax_threefry_partitionable``, the
+    default)."""
     n_surfaces = jnp.asarray(n_surfaces, jnp.int32)
     return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip, metallic, fluorescent, slots))(
         keys
