@@ -16,7 +16,7 @@ from ccjax.estimators.correlation import binning
 
 SCALES = (1e-12, 1e-6, 1e6)
 
-LABELS = ("C-by-C-MMSE", "C-by-C-MAP", "C-by-C-01", "soft-C-by-C-MMSE", "RGB-C-by-C-MMSE")
+LABELS = ("C-by-C-MMSE", "C-by-C-MAP", "C-by-C-01", "soft-C-by-C-MMSE", "RGB-C-by-C-MMSE", "soft-RGB-C-by-C-MMSE")
 """2-D rows of Table 4.2 (chromaticity only: exactly scale-invariant; MLM scores as MAP), the soft 2-D form and
 the 3-D form, whose brightness levels are relative to the scene's mean brightness."""
 

@@ -10,11 +10,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax._colour import rg as chromaticity_of
 from ccjax._colour import rg_to_rgb
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import (
     RG_BINS,
+    chromaticity,
     compact_rg_cells,
     rg_bins,
     soft_axis,
@@ -128,7 +128,9 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
         softness = self.softness
         assert softness is not None, "soft scores of a hard model"
         outside = self.log_probability.shape[0] - 1
-        scaled = chromaticity_of(rgb) * RG_BINS  # black pixels (achromatic point) get zero weight through ``valid``
+        # The scale-free chromaticity, as the hard path's ``rg_bins``: a dark but valid scene (x1e-12)
+        # must not read as black. Black pixels (achromatic point) get zero weight through ``valid``.
+        scaled = chromaticity(rgb) * RG_BINS
         (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
         ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
         rg_cell = jnp.asarray(RG_CELLS)[ri[:, :, None] * RG_BINS + gi[:, None, :]]  # (P, 2, 2)
