@@ -113,7 +113,7 @@ def test_fluorescent_gamut_adds_the_fluorescent_points_to_nd(default_world):
     _check_same_polytope(model, _oracle_points(default_world, True, True, fluorescent=fluorescent))
 
 
-def test_characterised_responses_are_balanced_by_the_approximated_lights_white(default_world, monkeypatch):
+def test_characterised_responses_are_balanced_by_the_approximated_lights_white(default_world):
     # A grey reflective "fluorescent" surface (reflectance 0.7, no emission) characterised from the
     # measurement lights is predicted as 0.7 Ê (§7.1); balanced by Ê's own white, its FL gamut
     # point under every light is 0.7 times the canonical white exactly (closed form), whatever the
@@ -123,10 +123,8 @@ def test_characterised_responses_are_balanced_by_the_approximated_lights_white(d
     grey = materials.FluorescentSurfaces(
         names=("grey",), reflectance=jax.numpy.full((1, 101), 0.7), emission=jax.numpy.zeros((1, 101, 101))
     )
-    lights = np.asarray(default_world.train_illuminants, np.float64)[: extensions.MEASUREMENT_LIGHTS]
-    monkeypatch.setattr(extensions, "characterised_fluorescents", lambda world: materials.characterise(grey, lights))
     blocks = extensions.light_blocks(
-        default_world, Extension.parse("FL"), fluorescent=extensions.default_fluorescent(default_world)
+        default_world, Extension.parse("FL"), fluorescent=extensions.default_fluorescent(default_world, grey)
     )
     white = np.asarray(default_world.canonical, np.float64) @ np.asarray(default_world.camera.sensors, np.float64)
     assert len(blocks) == 1 + len(default_world.train_illuminants)

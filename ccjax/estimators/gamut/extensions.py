@@ -204,23 +204,30 @@ MEASUREMENT_LIGHTS = 11
 lights come first; in the thesis world these are the 11 lab lights, A19)."""
 
 
-def characterised_fluorescents(world: World):
-    """The synthetic fluorescent surfaces of :mod:`ccjax.materials` characterised as the thesis
-    characterised its measured ones (§7.1): responses under the world's first
-    :data:`MEASUREMENT_LIGHTS` training lights, recombined by NNLS for any other light.
+def characterised_fluorescents(world: World, surfaces=None):
+    """Fluorescent surfaces characterised as the thesis characterised its measured ones (§7.1):
+    responses under the world's first :data:`MEASUREMENT_LIGHTS` training lights, recombined by
+    NNLS for any other light.
+
+    Arguments:
+        world: the world (its first training lights are the measurement lights).
+        surfaces: the surfaces' physical model (a :class:`ccjax.materials.FluorescentSurfaces`;
+            default: the nine synthetic surfaces of :mod:`ccjax.materials`).
 
     Returns:
         A :class:`ccjax.materials.Characterisation` (``.radiance(lights) -> (..., F, 101)``).
     """
     from ccjax import materials
 
+    if surfaces is None:
+        surfaces = materials.synthetic_fluorescent_surfaces()
     lights = np.asarray(world.train_illuminants, np.float64)[:MEASUREMENT_LIGHTS]
-    return materials.characterise(materials.synthetic_fluorescent_surfaces(), lights)
+    return materials.characterise(surfaces, lights)
 
 
-def default_fluorescent(world: World) -> FluorescentResponses:
+def default_fluorescent(world: World, surfaces=None) -> FluorescentResponses:
     """The camera responses of :func:`characterised_fluorescents` (what FL's gamut is built from:
-    the algorithm knows only the characterisation, as in the thesis).
+    the algorithm knows only the characterisation, as in the thesis); ``surfaces`` as there.
 
     The characterisation predicts a surface under the light's NNLS approximation
     ``Ê = Σ α_k E_k`` (§7.1), so its responses are white-balanced by that approximation's own white
@@ -231,7 +238,7 @@ def default_fluorescent(world: World) -> FluorescentResponses:
     lands 0.046 (r,g) from the canonical white, and the FL gamut grew 7.6x the matte gamut's volume
     (FL-CRULE-MV 0.124 rg RMS at 4 surfaces against CRULE-MV's 0.075; 0.081 with this balance).
     """
-    characterised = characterised_fluorescents(world)
+    characterised = characterised_fluorescents(world, surfaces)
     measurement = np.asarray(characterised.lights, np.float64)
 
     def responses(lights: np.ndarray, sensors: np.ndarray) -> np.ndarray:
