@@ -1,4 +1,5 @@
-"""(r,g) chromaticity, its inverse and (r,g) binning: the one implementation of each.
+"""(r,g) chromaticity (absolute and scale-free), which pixels have one, its inverse and (r,g)
+binning: the one implementation of each.
 
 ``r = R / (R+G+B)``, ``g = G / (R+G+B)`` (Barnard 1999 §1.2); a pixel whose sum is not positive
 has no chromaticity and maps to the achromatic point (1/3, 1/3), never to NaN.
@@ -8,7 +9,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float, Int
+from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 TINY = 1e-12
 """Sums at or below this have no chromaticity."""
@@ -27,6 +28,34 @@ def rg(rgb: Float[ArrayLike, "... 3"]) -> Float[Array, "... 2"]:
     total = jnp.sum(rgb, axis=-1, keepdims=True)
     valid = total > TINY
     return jnp.where(valid, rgb[..., :2] / jnp.where(valid, total, 1.0), 1.0 / 3.0)
+
+
+def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, " P"]:
+    """The pixels that carry evidence about the light: masked in and not black.
+
+    A black pixel has no chromaticity. "Black" is relative to the scene's brightest masked pixel
+    (``R+G+B`` at most :data:`TINY` times its), not an absolute level, so that the test, like the
+    chromaticities it guards, does not depend on the scene's scale: a scene multiplied by 1e-12
+    keeps every pixel, and an all-zero scene keeps none.
+
+    Arguments:
+        rgb: ``(P, 3)`` non-negative camera RGB.
+        mask: ``(P,)`` True where a pixel may be used.
+
+    Returns:
+        ``(P,)`` booleans.
+    """
+    total = jnp.sum(rgb, axis=-1)
+    brightest = jnp.max(jnp.where(mask, total, 0.0))
+    return mask & (total > TINY * brightest)
+
+
+def chromaticity(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
+    """Scale-free (r,g) of each pixel: :func:`rg` of the pixel divided by its largest
+    channel, so that a dark but valid pixel (a scene scaled by 1e-12) is not taken for black by
+    ``rg``'s absolute threshold. Black pixels give the achromatic point, as ``rg``."""
+    peak = jnp.max(rgb, axis=-1, keepdims=True)
+    return rg(rgb / jnp.where(peak > 0, peak, 1.0))
 
 
 def rg_to_rgb(chromaticity: Float[ArrayLike, "... 2"]) -> Float[Array, "... 3"]:

@@ -195,6 +195,23 @@ def test_estimator_runs_under_x64_and_agrees_with_float32():
     np.testing.assert_allclose(double, single, atol=1e-5)
 
 
+@pytest.mark.parametrize("scale", [1e-12, 1e-6, 1e6])
+def test_scaled_scenes_answer_as_the_original(scale):
+    # The net's input is a chromaticity histogram, so a scene times any positive factor is the same
+    # scene to it; "black" is relative to the scene's brightest pixel, as in Colour by Correlation.
+    model = neural.NeuralNet(net=NET, fallback=jnp.ones(3))
+    rgb = np.random.default_rng(6).uniform(0.05, 1, size=(6, P, 3)).astype(np.float32)
+    rgb[0, :3] = 0.0  # black surfaces: never evidence, at any scale
+    mask = np.ones((6, P), bool)
+    reference = run(model, jnp.asarray(rgb), jnp.asarray(mask))
+    scaled = run(model, jnp.asarray(rgb * np.float32(scale)), jnp.asarray(mask))
+    histogram = jax.jit(jax.vmap(neural.binarised_histogram))
+    np.testing.assert_array_equal(histogram(jnp.asarray(rgb * np.float32(scale)), mask), histogram(rgb, mask))
+    assert np.all(np.asarray(scaled.status) == np.asarray(reference.status))
+    assert np.all(np.asarray(reference.status) != Status.NO_DATA)
+    np.testing.assert_allclose(scaled.illuminant, reference.illuminant, rtol=0, atol=1e-6)
+
+
 # ---------------------------------------------------------------------------------------------
 # cache, registry, CLI
 
@@ -293,10 +310,12 @@ def test_trained_net_reproduces_table_4_2(barnard_world, cache):
 
 
 def log_chroma_reference(rgb: np.ndarray, mask: np.ndarray, bins: int = 32, extent: float = 2.0) -> np.ndarray:
-    """sqrt of the normalised histogram of (log G/R, log G/B) by a plain loop (edge bins clamp)."""
+    """sqrt of the normalised histogram of (log G/R, log G/B) by a plain loop (edge bins clamp; a
+    surface counts when every channel is above 1e-12 of the brightest masked channel)."""
     counts, total = np.zeros(bins * bins), 0
+    brightest = max([float(np.max(x)) for x, valid in zip(rgb, mask) if valid] or [0.0])
     for (red, green, blue), valid in zip(rgb.astype(np.float64), mask):
-        if not valid or min(red, green, blue) <= 1e-12:
+        if not valid or min(red, green, blue) <= 1e-12 * brightest or brightest == 0:
             continue
         u, v = np.log(green / red), np.log(green / blue)
         i = min(max(int(np.floor((u + extent) / (2 * extent) * bins)), 0), bins - 1)
@@ -312,6 +331,17 @@ def test_log_chroma_histogram_matches_loop_reference():
     rgb[3] = 0.0
     mask = rng.random(40) < 0.8
     got = neural.log_chroma_histogram(jnp.asarray(rgb, jnp.float32), jnp.asarray(mask))
+    np.testing.assert_allclose(got, log_chroma_reference(rgb, mask), atol=1e-6)
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-12, 1e6])
+def test_log_chroma_histogram_is_scale_free(scale):
+    rng = np.random.default_rng(5)
+    rgb = rng.uniform(0.01, 1.0, (40, 3))
+    rgb[3] = 0.0
+    rgb[5, 2] = 0.0  # one zero channel: no log-chroma
+    mask = rng.random(40) < 0.8
+    got = neural.log_chroma_histogram(jnp.asarray(rgb * scale, jnp.float32), jnp.asarray(mask))
     np.testing.assert_allclose(got, log_chroma_reference(rgb, mask), atol=1e-6)
 
 

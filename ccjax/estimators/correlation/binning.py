@@ -8,40 +8,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax._colour import rg, rg_bin, rg_numpy
-from ccjax.estimators.base import TINY
+from ccjax._colour import chromaticity, rg_bin, rg_numpy
+from ccjax._colour import valid_pixels as valid_pixels  # re-exported: the kernels' evidence test
 
 RG_BINS = 50
 """(r,g) divisions: bins of width 0.02, as the thesis' C-by-C and neural net (§4.5.4)."""
 N_RG_CELLS = RG_BINS * (RG_BINS + 1) // 2  # bins (i, j) with i + j <= 49
-
-
-def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, " P"]:
-    """The pixels that carry evidence about the light: masked in and not black.
-
-    A black pixel has no chromaticity. "Black" is relative to the scene's brightest masked pixel
-    (``R+G+B`` at most ``TINY`` times its), not an absolute level, so that the test, like the
-    chromaticities it guards, does not depend on the scene's scale: a scene multiplied by 1e-12
-    keeps every pixel, and an all-zero scene keeps none.
-
-    Arguments:
-        rgb: ``(P, 3)`` non-negative camera RGB.
-        mask: ``(P,)`` True where a pixel may be used.
-
-    Returns:
-        ``(P,)`` booleans.
-    """
-    total = jnp.sum(rgb, axis=-1)
-    brightest = jnp.max(jnp.where(mask, total, 0.0))
-    return mask & (total > TINY * brightest)
-
-
-def chromaticity(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
-    """Scale-free (r,g) of each pixel: :func:`ccjax._colour.rg` of the pixel divided by its largest
-    channel, so that a dark but valid pixel (a scene scaled by 1e-12) is not taken for black by
-    ``rg``'s absolute threshold. Black pixels give the achromatic point, as ``rg``."""
-    peak = jnp.max(rgb, axis=-1, keepdims=True)
-    return rg(rgb / jnp.where(peak > 0, peak, 1.0))
 
 
 def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:

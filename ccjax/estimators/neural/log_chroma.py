@@ -27,9 +27,18 @@ LOG_CHROMA_EXTENT = 2.0
 
 
 def log_chroma(rgb: Float[Array, "P 3"]) -> Float[Array, "P 2"]:
-    """``(log(G / R), log(G / B))`` of each surface (channels clamped at :data:`TINY`)."""
-    safe = jnp.maximum(rgb, TINY)
+    """``(log(G / R), log(G / B))`` of each surface (a channel at or below 0 counts as 1: finite,
+    and such a surface is never valid, :func:`lit_surfaces`)."""
+    safe = jnp.where(rgb > 0, rgb, 1.0)
     return jnp.stack([jnp.log(safe[:, 1] / safe[:, 0]), jnp.log(safe[:, 1] / safe[:, 2])], axis=-1)
+
+
+def lit_surfaces(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, " P"]:
+    """The surfaces with a log-chroma: masked in, every channel above :data:`TINY` times the
+    scene's brightest masked channel (relative, so a scene times any positive factor keeps the
+    same surfaces, as :func:`ccjax._colour.valid_pixels` does for chromaticity)."""
+    brightest = jnp.max(jnp.where(mask[:, None], rgb, 0.0))
+    return mask & jnp.all(rgb > TINY * brightest, axis=-1) & (brightest > 0)
 
 
 def log_chroma_histogram(
@@ -39,8 +48,7 @@ def log_chroma_histogram(
     (``bins * bins``; values outside the range land in the edge bins).
 
     Arguments:
-        rgb: ``(P, 3)`` camera RGB of the surfaces; a surface with any channel at or below
-            :data:`TINY` is not counted.
+        rgb: ``(P, 3)`` camera RGB of the surfaces; only :func:`lit_surfaces` are counted.
         mask: ``(P,)`` True where a surface may be used.
         bins: divisions per log-chroma axis.
         extent: half-width of the range covered on each axis, ``[-extent, extent]``.
@@ -50,7 +58,7 @@ def log_chroma_histogram(
         ``log(G / R)``, ``j`` along ``log(G / B)``) at index ``bins * i + j``; all zeros when no
         surface is valid.
     """
-    valid = mask & jnp.all(rgb > TINY, axis=-1)
+    valid = lit_surfaces(rgb, mask)
     cells = jnp.clip(jnp.floor((log_chroma(rgb) + extent) / (2 * extent) * bins), 0, bins - 1).astype(jnp.int32)
     weight = valid.astype(rgb.dtype)
     counts = jnp.zeros(bins * bins, rgb.dtype).at[cells[:, 0] * bins + cells[:, 1]].add(weight)
@@ -94,7 +102,7 @@ class LogChromaNet(AbstractSurfaceEstimator):
         histogram = log_chroma_histogram(rgb, mask, self.bins, self.extent)
         u, v = self.net(histogram)
         illuminant = jnp.stack([jnp.exp(-u), jnp.ones_like(u), jnp.exp(-v)])
-        usable = jnp.any(mask & jnp.all(rgb > TINY, axis=-1))
+        usable = jnp.any(lit_surfaces(rgb, mask))
         return with_fallback(illuminant / jnp.sum(illuminant), usable, self.fallback)
 
 

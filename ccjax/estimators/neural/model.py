@@ -10,8 +10,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
-from ccjax._colour import rg, rg_bin, rg_to_rgb
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, Status
+from ccjax._colour import chromaticity, rg_bin, rg_to_rgb, valid_pixels
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
 
 BINS = 50
 """(r,g) bins per axis; cells are ``1 / BINS = 0.02`` wide (§4.5.5)."""
@@ -27,7 +27,8 @@ RGB estimate is positive and the diagonal map to canonical exists."""
 
 def histogram_bins(rgb: Float[Array, "P 3"]) -> Int[Array, " P"]:
     """Flat (r,g) bin index ``floor(r * 50) * 50 + floor(g * 50)`` of each pixel (bins clamped to
-    0..49; black pixels land in the achromatic bin and are masked by the callers).
+    0..49; scale-free, :func:`ccjax._colour.chromaticity`; black pixels land in the achromatic bin
+    and are masked by the callers).
 
     Arguments:
         rgb: ``(P, 3)`` pixels or surfaces.
@@ -35,7 +36,7 @@ def histogram_bins(rgb: Float[Array, "P 3"]) -> Int[Array, " P"]:
     Returns:
         ``(P,)`` int32 bin indices in ``0 .. 2499``.
     """
-    cells = rg_bin(rg(rgb), BINS)
+    cells = rg_bin(chromaticity(rgb), BINS)  # scale-free, as Colour by Correlation's bins
     return cells[..., 0] * BINS + cells[..., 1]
 
 
@@ -44,12 +45,13 @@ def binarised_histogram(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Fl
 
     Arguments:
         rgb: ``(P, 3)`` camera RGB.
-        mask: ``(P,)`` True for valid pixels; black pixels (no chromaticity) are ignored too.
+        mask: ``(P,)`` True for valid pixels; black pixels (no chromaticity; black relative to the
+            brightest masked pixel, :func:`ccjax._colour.valid_pixels`) are ignored too.
 
     Returns:
         ``(2500,)`` zeros and ones, bin ``(i, j)`` (r in ``[0.02 i, 0.02 (i+1))``) at ``50 i + j``.
     """
-    valid = mask & (jnp.sum(rgb, axis=-1) > TINY)
+    valid = valid_pixels(rgb, mask)
     return jnp.zeros(N_INPUTS, rgb.dtype).at[histogram_bins(rgb)].max(valid.astype(rgb.dtype))
 
 
@@ -67,7 +69,7 @@ def occupied_bins(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> tuple[ja
         rgb: ``(P, 3)`` surfaces.
         mask: ``(P,)`` True where a surface is valid.
     """
-    valid = mask & (jnp.sum(rgb, axis=-1) > TINY)
+    valid = valid_pixels(rgb, mask)
     bins = jnp.sort(jnp.where(valid, histogram_bins(rgb), N_INPUTS))
     first = jnp.concatenate([jnp.ones((1,), bool), bins[1:] != bins[:-1]])
     weight = (first & (bins < N_INPUTS)).astype(rgb.dtype)
@@ -133,10 +135,10 @@ class NeuralNet(AbstractSurfaceEstimator):
     estimates_brightness = False
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
-        has_data = jnp.any(mask & (jnp.sum(rgb, axis=-1) > TINY))
+        has_data = jnp.any(valid_pixels(rgb, mask))
         predicted = self.net.from_bins(*occupied_bins(rgb, mask))
-        chromaticity, inside = _project_to_simplex(jnp.nan_to_num(predicted, nan=1.0 / 3.0))
-        illuminant = jnp.where(has_data, rg_to_rgb(chromaticity), self.fallback.astype(chromaticity.dtype))
+        projected, inside = _project_to_simplex(jnp.nan_to_num(predicted, nan=1.0 / 3.0))
+        illuminant = jnp.where(has_data, rg_to_rgb(projected), self.fallback.astype(projected.dtype))
         admissible = inside & jnp.all(jnp.isfinite(predicted))
         status = jnp.where(has_data, jnp.where(admissible, Status.ESTIMATED, Status.RELAXED), Status.NO_DATA)
         return Estimate(illuminant=illuminant, status=status)
