@@ -17,8 +17,10 @@ renders the fluorescent test surfaces through that characterisation (as the thes
 scenes were), builds FL's gamut from it and prints both kinds of numbers beside the thesis'.
 ``--scenes`` scenes per condition (default 1000, the thesis' count) of 4 and 8 surfaces: the
 scenes of ``ccjax reproduce 7.2``, so the row of the default surfaces (``1x1``) repeats its cells.
+The defaults were chosen with it (:mod:`ccjax.materials.fluorescence`: the member matching the
+thesis' cost with the most harm); ``2x0.3333`` is the first, physically chosen set.
 
-Usage: ``python benchmarks/fluorescent_standins.py [--scenes 1000] [--configs 1x1,0.6x1,0.6x2,0.5x3,1x3]``
+Usage: ``python benchmarks/fluorescent_standins.py [--scenes 1000] [--configs 1x1,2x0.3333,1.1x1,1.2x1,1x1.3333]``
 (``YIELDxWIDTH``; ``1x1`` is the default surfaces).
 """
 
@@ -77,7 +79,7 @@ def _config(text: str) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--scenes", type=int, default=1000)
-    parser.add_argument("--configs", default="1x1,0.6x1,0.6x2,0.5x3,1x3")
+    parser.add_argument("--configs", default="1x1,2x0.3333,1.1x1,1.2x1,1x1.3333")
     args = parser.parse_args()
     if args.scenes < 1:
         parser.error("--scenes: expected a positive count")
