@@ -199,7 +199,13 @@ _CHUNK = 1000
 
 
 def run_conditions(
-    world: World, fitted: list, conditions: Sequence[Condition], n_scenes: int, key: jax.Array, progress: bool = True
+    world: World,
+    fitted: list,
+    conditions: Sequence[Condition],
+    n_scenes: int,
+    key: jax.Array,
+    progress: bool = True,
+    metals: np.ndarray | None = None,
 ) -> list[SweepResult]:
     """Every model on every condition's scenes, the scene draws shared across conditions.
 
@@ -217,6 +223,8 @@ def run_conditions(
         n_scenes: scenes per condition.
         key: the sweep key.
         progress: show a progress bar.
+        metals: ``(M, 101)`` spectra of the metallic highlights (default: the six metals'
+            reflectances, :func:`ccjax.materials.scene_metal_spectra`).
 
     Returns:
         One :class:`~ccjax.experiments.sweeps.SweepResult` per condition (one surface count each).
@@ -242,7 +250,7 @@ def run_conditions(
 
             tables[need] = scenes.SceneTables.from_world(
                 world,
-                metals=True if need[0] else None,
+                metals=(True if metals is None else metals) if need[0] else None,
                 fluorescent=characterised_fluorescents(world) if need[1] else None,
             )
         n = condition.n_surfaces

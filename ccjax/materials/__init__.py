@@ -30,3 +30,4 @@ from ccjax.materials.metals import fresnel_reflectance as fresnel_reflectance
 from ccjax.materials.metals import metal_reflectance as metal_reflectance
 from ccjax.materials.metals import metal_spectra as metal_spectra
 from ccjax.materials.metals import optical_constants as optical_constants
+from ccjax.materials.metals import scene_metal_spectra as scene_metal_spectra

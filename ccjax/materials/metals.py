@@ -22,13 +22,29 @@ API (the defaults are spec ch08-12 §8, A10/A11):
 * :func:`optical_constants` ``(name) -> OpticalConstants`` (the embedded table and its source);
 * :func:`metal_reflectance` ``(name) -> (101,)`` absolute normal-incidence reflectance in [0, 1];
 * :func:`metal_spectra` ``(names=METALS, unit_mean=True) -> (M, 101)``: the "metal spectra" of the
-  scenes and the MET gamut, each scaled to unit mean over 380–780 nm (A10), so ``s * M`` with
-  ``s ~ U(0, 4)`` is a highlight up to about four times as bright as a perfect white;
+  MET gamut, each scaled to unit mean over 380–780 nm (A10);
+* :func:`scene_metal_spectra` ``(names=METALS) -> (M, 101)``: the spectra of the scenes' metallic
+  highlights, the metals' own (absolute) reflectances, so ``s * M`` with ``s ~ U(0, 4)`` is at most
+  four times as bright as a perfect white in every channel (§8.3; why not unit mean: below);
 * constants :data:`METALS` (all six: metallic highlights in scenes draw from these, A11),
   :data:`COLOURED_METALS` (brass, copper, gold: the ones the MET canonical gamut adds, A10),
   :data:`GREY_METALS`, :data:`MET_MULTIPLIER` (``k_m = 8``), :data:`METAL_PROBABILITY` (0.25),
   :data:`METAL_MAX_AMOUNT` (4) and :data:`THESIS_CLIP` (300 in thesis units, ``300/255`` on ccjax's
   scale).
+
+**The highlights' scale** (§8.3, A11). The thesis "added metallic specularities which were up to a
+factor of four times as bright as a perfect white", drawn uniformly, to 25 % of the surfaces; it
+does not say how its measured spectra were scaled. The spec's A11 reads them as unit-mean spectra
+(as A10 does for the gamut), but a unit-mean copper times 4 is 5.2 times a perfect white in red, not
+"up to four times"; the metals' own reflectances (mean 0.64–0.99 here) keep every channel at most
+four times white. Table 8.3 points the same way through the methods that ignore metals, whose
+brightness error depends on nothing but the highlights: with unit-mean highlights GW, DB-GW and
+RETINEX err 77 %, 61 % and 70 % above the thesis in the metallic column (483.7 against 274 for
+GW), with the reflectances 35 %, 31 % and 33 %, and SP-ECRULE-MV's brightness error varies over the
+five conditions by 1.62x with unit-mean highlights against the thesis' "roughly constant" (at most
+1.5x), 1.16x with the reflectances (``python benchmarks/metal_recipe.py``, the scenes of ``ccjax
+reproduce 8.3``). So the scenes use the reflectances; the MET gamut keeps A10's unit mean (its scale
+is ``k_m``'s: Table 8.2's MET rows move by 2 % or less from ``k_m = 8`` to 24, same script).
 """
 
 from __future__ import annotations
@@ -58,7 +74,8 @@ METAL_PROBABILITY: float = 0.25
 """Probability that a surface of a synthetic scene gets a metallic highlight (§8.3)."""
 
 METAL_MAX_AMOUNT: float = 4.0
-"""Metallic highlights are ``s * M`` with ``s ~ U(0, 4)`` (§8.3: up to four times as bright as white)."""
+"""Metallic highlights are ``s * M`` with ``s ~ U(0, 4)`` and ``M`` a metal's reflectance (§8.3: up to
+four times as bright as white; :func:`scene_metal_spectra`)."""
 
 THESIS_CLIP: float = 300.0 / 255.0
 """The clip level of Tables 8.2/8.3's clipped conditions, 300 in thesis units, on ccjax's scale (A6)."""
@@ -137,7 +154,8 @@ def metal_reflectance(name: str) -> np.ndarray:
 
 
 def metal_spectra(names: tuple[str, ...] | list[str] = METALS, *, unit_mean: bool = True) -> np.ndarray:
-    """Metal specular spectra, one row per metal, for scenes and for the MET gamut.
+    """Metal specular spectra, one row per metal: unit mean for the MET gamut (A10), absolute for
+    scenes (:func:`scene_metal_spectra`).
 
     Arguments:
         names: metals, from :data:`METALS` (default: all six; the MET gamut uses
@@ -157,3 +175,17 @@ def metal_spectra(names: tuple[str, ...] | list[str] = METALS, *, unit_mean: boo
     if unit_mean:
         spectra = spectra / spectra.mean(axis=1, keepdims=True)
     return spectra
+
+
+def scene_metal_spectra(names: tuple[str, ...] | list[str] = METALS) -> np.ndarray:
+    """The spectra of synthetic scenes' metallic highlights: each metal's own normal-incidence
+    reflectance (Barnard 1999 §8.3: highlights "up to a factor of four times as bright as a perfect
+    white" are ``s * M`` with ``s ~ U(0, 4)`` and ``M <= 1``; why not unit mean: the module notes).
+
+    Arguments:
+        names: metals, from :data:`METALS` (default: all six, A11: grey metals included).
+
+    Returns:
+        ``(len(names), 101)`` float64 reflectances in [0, 1].
+    """
+    return metal_spectra(names, unit_mean=False)

@@ -271,11 +271,12 @@ def sample_mondrians(
             image's scale, e.g. ``ShotNoise(a=1e-4, b=0)``).
         clip: saturation level on the image's scale (values above it are set to it).
         normalise: scale each image so its brightest value is 1.
-        metallic: ``True`` (§8.3: probability 0.25, up to 4 x a unit-mean metal spectrum) or a
+        metallic: ``True`` (§8.3: probability 0.25, up to 4 x a metal's reflectance) or a
             :class:`Metallic`: metal-coloured highlight blobs.
         fluorescent: ``True`` (§7.3: each patch fluorescent with probability 0.3) or a
             :class:`Fluorescent`.
-        metals: metal spectra ``(M, 101)`` (default: the six of :func:`ccjax.materials.metal_spectra`).
+        metals: metal spectra ``(M, 101)`` (default: the six metals' reflectances,
+            :func:`ccjax.materials.scene_metal_spectra`).
         fluorescent_surfaces: the fluorescent :class:`RadianceModel` (default: the nine synthetic
             surfaces' physical model).
 

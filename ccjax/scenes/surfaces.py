@@ -4,7 +4,7 @@ A scene is ``P`` surfaces drawn without replacement from the world's reflectance
 illuminant drawn from the **test** set; each surface gives one RGB. Options reproduce the thesis'
 experiments: specularities (each surface specular with probability 0.25, adding ``U(0, 2)`` times a
 perfect white, §4.7 and ch. 8), metallic highlights (:class:`Metallic`: probability 0.25, adding
-``U(0, 4)`` times a unit-mean metal spectrum, §8.3), fluorescent surfaces (:class:`Fluorescent`:
+``U(0, 4)`` times a metal's reflectance, §8.3), fluorescent surfaces (:class:`Fluorescent`:
 each surface slot replaced by one of the fluorescent surfaces with probability 0.3, §7.3, A21),
 clipping (pixels with any channel above the level are discarded, i.e. masked out) and shot noise
 (the chapter 3 noise model, variance ``a * rho + b``).
@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, UInt32
 
-from ccjax.materials.metals import METAL_MAX_AMOUNT, METAL_PROBABILITY, METALS, metal_spectra
+from ccjax.materials.metals import METAL_MAX_AMOUNT, METAL_PROBABILITY, scene_metal_spectra
 from ccjax.world import World
 
 SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
@@ -108,7 +108,10 @@ class ShotNoise:
 class Metallic:
     """Metallic highlights (Barnard 1999 §8.3; spec ch08-12 A11): each surface gets one with
     ``probability``, adding ``U(0, max_amount)`` times a metal spectrum drawn uniformly from the
-    tables' metals (unit-mean spectra, so 4 is up to about four times a perfect white)."""
+    tables' metals. By default the spectra are the metals' own reflectances (at most 1), so a
+    highlight is at most ``max_amount`` times as bright as a perfect white in every channel: the
+    thesis' "up to a factor of four times as bright as a perfect white" (see
+    :func:`ccjax.materials.scene_metal_spectra`)."""
 
     probability: float = METAL_PROBABILITY
     max_amount: float = METAL_MAX_AMOUNT
@@ -191,8 +194,8 @@ class SceneTables(eqx.Module):
         Arguments:
             world: the world.
             metals: metal specular spectra ``(M, 101)`` for :class:`Metallic` highlights, or
-                ``True`` for :func:`ccjax.materials.metal_spectra` of all six metals (unit mean;
-                A11: grey metals included), or ``None``.
+                ``True`` for the reflectances of all six metals
+                (:func:`ccjax.materials.scene_metal_spectra`; A11: grey metals included), or ``None``.
             fluorescent: a :class:`RadianceModel` for :class:`Fluorescent` surfaces (e.g.
                 ``ccjax.materials.synthetic_fluorescent_surfaces()`` or its
                 ``characterise(...)``), or ``None``.
@@ -235,7 +238,7 @@ class SceneTables(eqx.Module):
 
 
 def _metal_table(metals, dtype) -> Float[Array, "M 101"]:
-    spectra = metal_spectra(METALS) if metals is True else np.asarray(metals, dtype=np.float64)
+    spectra = scene_metal_spectra() if metals is True else np.asarray(metals, dtype=np.float64)
     if spectra.ndim != 2 or spectra.shape[0] < 1 or spectra.shape[1] != 101:
         raise ValueError(f"metals: expected True or spectra of shape (M, 101) with M >= 1, got {spectra.shape}")
     if not np.all(np.isfinite(spectra)) or np.any(spectra < 0):
@@ -517,8 +520,8 @@ def sample(
             or a :class:`Metallic`.
         fluorescent: ``True`` for the §7.3 recipe (:class:`Fluorescent` default: p = 0.3) or a
             :class:`Fluorescent`.
-        metals: metal spectra ``(M, 101)`` of the highlights (default: all six unit-mean metals of
-            :func:`ccjax.materials.metal_spectra`).
+        metals: metal spectra ``(M, 101)`` of the highlights (default: the six metals'
+            reflectances, :func:`ccjax.materials.scene_metal_spectra`).
         fluorescent_surfaces: the :class:`RadianceModel` of the fluorescent surfaces (default:
             the nine synthetic surfaces' physical model,
             :func:`ccjax.materials.synthetic_fluorescent_surfaces`).
