@@ -203,6 +203,12 @@ def test_reproduction_text_and_json_layout():
     assert lines[5] == "s.e.: standard error of ours over the scenes (delta method for the RMS)"
     payload = json.loads(experiments.Reproduction("4.2", rows).to_json())
     assert list(payload) == ["table", "rows"] and payload["rows"] == rows
+    # A label longer than the method column widens it and keeps a space before the column name.
+    long = [{**rows[0], "method": "MET-ND-ECRULE-SCWIA-12"}, rows[1]]
+    lines = experiments.Reproduction("8.2", long).text().splitlines()
+    assert lines[2].startswith("MET-ND-ECRULE-SCWIA-12 rg ")
+    assert lines[3].startswith("ECRULE-SCWIA-12        map_rgb ")
+    assert lines[1].index("column") == lines[2].index("rg") == lines[3].index("map_rgb")
 
 
 def test_report_columns_never_touch():

@@ -23,7 +23,8 @@ class Column:
         key: the row key shown.
         header: the column heading.
         spec: format spec of a cell value (``".4g"``, ``"+.1%"``); ``None`` values print ``missing``.
-        width: cell width; ``None`` fits the widest cell or heading (plus ``gap``).
+        width: cell width (a minimum: a longer cell widens the column to it plus one space);
+            ``None`` fits the widest cell or heading (plus ``gap``).
         align: ``"<"`` (text) or ``">"`` (numbers).
         gap: spaces before the column.
         missing: the cell of a ``None`` value.
@@ -76,10 +77,15 @@ class Report:
         cells = [[column.cell(row) for column in columns] for row in self.rows]
         widths = []
         for position, column in enumerate(columns):
-            if column.width is not None:
+            longest = max([len(column.heading), *(len(line[position]) for line in cells)])
+            if column.width is not None and longest < column.width:
                 widths.append(column.width)
+            elif column.width is not None:
+                # A fixed width is a minimum: a longer cell widens the column and keeps a space
+                # after it, so it never runs into the next column.
+                widths.append(longest + 1)
             else:
-                widths.append(max([len(column.heading), *(len(line[position]) for line in cells)]))
+                widths.append(longest)
         head = "".join(" " * c.gap + format(c.heading, f"{c.align}{w}") for c, w in zip(columns, widths, strict=True))
         body = [
             "".join(" " * c.gap + format(v, f"{c.align}{w}") for c, w, v in zip(columns, widths, line, strict=True))
