@@ -35,17 +35,18 @@ API (the defaults are spec ch08-12 §8, A10/A11):
 **The highlights' scale** (§8.3, A11). The thesis "added metallic specularities which were up to a
 factor of four times as bright as a perfect white", drawn uniformly, to 25 % of the surfaces; it
 does not say how its measured spectra were scaled. The spec's A11 reads them as unit-mean spectra
-(as A10 does for the gamut), but a unit-mean copper times 4 is 5.2 times a perfect white in red, not
-"up to four times"; the metals' own reflectances (mean 0.64–0.99 here) keep every channel at most
-four times white. Table 8.3 points the same way through the methods that ignore metals, whose
-brightness error depends on nothing but the highlights: with unit-mean highlights GW, DB-GW and
-RETINEX err 77 %, 61 % and 70 % above the thesis in the metallic column (483.7 against 274 for
-GW), with the reflectances 35 %, 31 % and 33 %, and SP-ECRULE-MV's brightness error varies over the
-five conditions by 1.62x with unit-mean highlights against the thesis' "roughly constant" (at most
-1.5x), 1.16x with the reflectances (``python benchmarks/metal_recipe.py``, the scenes of ``ccjax
-reproduce 8.3``). So the scenes use the reflectances; the MET gamut keeps A10's unit mean (its scale
-is ``k_m``'s: from ``k_m = 8`` to 24 Table 8.2's MET rows move by at most 2.2 % on matte scenes and
-10 % with dielectric highlights, same script).
+(as A10 does for the gamut), but a unit-mean copper times 4 reflects 5.2 times what a perfect white
+does at long wavelengths (4.4 times in the Sony camera's red channel), not "up to four times"; the
+metals' own reflectances (mean 0.64–0.99 here) keep every channel at most four times white. Table
+8.3 points the same way through the methods that ignore metals, whose brightness error depends on
+nothing but the highlights: with unit-mean highlights GW, DB-GW and RETINEX err 77 %, 61 % and 70 %
+above the thesis in the metallic column (483.7 against 274 for GW), with the reflectances 35 %, 31 %
+and 33 %, and SP-ECRULE-MV's brightness error varies over the five conditions by 1.62x with
+unit-mean highlights against the thesis' "roughly constant" (at most 1.5x), 1.16x with the
+reflectances (``python benchmarks/metal_recipe.py``, the scenes of ``ccjax reproduce 8.3``). So the
+scenes use the reflectances; the MET gamut keeps A10's unit mean (its scale is ``k_m``'s: from
+``k_m = 8`` to 24 Table 8.2's MET rows move by at most 2.2 % on matte scenes and 10 % with
+dielectric highlights, same script).
 """
 
 from __future__ import annotations
