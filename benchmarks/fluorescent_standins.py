@@ -17,8 +17,9 @@ renders the fluorescent test surfaces through that characterisation (as the thes
 scenes were), builds FL's gamut from it and prints both kinds of numbers beside the thesis'.
 ``--scenes`` scenes per condition (default 1000, the thesis' count) of 4 and 8 surfaces: the
 scenes of ``ccjax reproduce 7.2``, so the row of the default surfaces (``1x1``) repeats its cells.
-The defaults were chosen with it (:mod:`ccjax.materials.fluorescence`: the member matching the
-thesis' cost with the most harm); ``2x0.3333`` is the first, physically chosen set.
+The defaults were chosen with it (:mod:`ccjax.materials.fluorescence`: the measured member whose
+cost is within 3 % of the thesis' at both sizes with the most harm, bands up to 210 nm);
+``2x0.3333`` is the first, physically chosen set.
 
 Usage: ``python benchmarks/fluorescent_standins.py [--scenes 1000] [--configs 1x1,2x0.3333,1.1x1,1.2x1,1x1.3333]``
 (``YIELDxWIDTH``; ``1x1`` is the default surfaces).
