@@ -542,14 +542,12 @@ def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[A
 def estimate_pixels(model: AbstractEstimator, rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
     """Run a model on every masked pixel of an image (no block averaging), jit-able.
 
-    Image-only models get the image; grey-world models (linear in the pixels) get the masked mean
-    as a single datum, which gives the same estimate with one fast reduction; others get the
-    pixel list.
+    Image-only models get the image; models linear in the pixels (``model.pools_pixels``: grey
+    world) get the masked mean as a single datum, which gives the same estimate with one fast
+    reduction; others get the pixel list.
     """
-    from ccjax.estimators.simple import GreyWorld
-
     if model.input_kind == "image":
         return _concrete(model)(rgb, mask)
-    if isinstance(model, GreyWorld):
+    if model.pools_pixels:
         return model(masked_mean(rgb, mask)[None], jnp.any(mask)[None])
     return _concrete(model)(rgb.reshape(-1, 3), mask.reshape(-1))

@@ -472,7 +472,7 @@ def test_kernel_runs_in_x64(default_world, models):
 def test_estimate_batch_blocks_equal_one_vmap(default_world, models, monkeypatch):
     # 2 * block + 1 scenes: three equal blocks, the last padded with one copy of the first scene.
     estimator = gamut.GamutMapping(models[("ECRULE", None)], "SCWIA", 12.0)
-    block = type(estimator).block_size
+    block = estimator.block_size(jax.default_backend())
     assert block is not None and block > 1
     scenes = sample(jax.random.key(43), default_world, 2 * block + 1, 8)
     calls = []

@@ -4,17 +4,17 @@ estimators, ``model(image (H, W, 3), mask (H, W))`` for image estimators; batchi
 (:func:`estimate_batch`). Input checks at the Python boundary: :func:`validate_input`,
 :func:`require_kind`."""
 
-from __future__ import annotations
-
 import abc
 import enum
 import typing
+from dataclasses import dataclass
 from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
 TINY = 1e-12
@@ -78,36 +78,94 @@ class Estimate(eqx.Module):
         self.relaxation = jnp.asarray(relaxation)
 
 
+@dataclass(frozen=True)
+class Padding:
+    """How a model's answers and cost depend on the padded size of a surface list, for engines that
+    pad scenes of several sizes to one shape (one compiled program for several counts).
+
+    Padding adds masked-out surfaces, which no estimator reads; what can change is a Python branch
+    on the scene's size. A model states the sizes where its kernel branches (``budgets``), so an
+    engine pads a count only within the interval between two consecutive budgets.
+
+    Attributes:
+        budgets: the observation counts at which the kernel takes another branch (the gamut
+            engine's observation budgets); empty: the model has no size branch.
+        counted_slots: when set, below its smallest budget the kernel reads only a scene's usable
+            observations in scenes of at least this many slots (padding costs it almost nothing
+            there); ``None``: every slot is read (a padded scene costs its padded size).
+    """
+
+    budgets: tuple[int, ...] = ()
+    counted_slots: int | None = None
+
+    @staticmethod
+    def combine(paddings: "typing.Iterable[Padding]") -> "Padding":
+        """The padding rule of several models run on the same scenes: every budget of each, and
+        counted slots only when every model with budgets counts them (the largest threshold)."""
+        paddings = list(paddings)
+        budgets = tuple(sorted({b for p in paddings for b in p.budgets if b > 0}))
+        with_budgets = [p for p in paddings if p.budgets]
+        counted = [p.counted_slots for p in with_budgets]
+        slots = max(counted) if counted and all(c is not None for c in counted) else None  # type: ignore[type-var]
+        return Padding(budgets, slots)
+
+
+NO_PADDING_BRANCH = Padding()
+"""The padding rule of a model whose kernel has no branch on the scene's size."""
+
+
 class AbstractEstimator(eqx.Module):
     """A fitted estimator: configuration that changes the trace is static, what can
     be learned is an array, so every model is a valid ``jax.jit`` / ``jax.vmap`` / ``jax.grad``
     argument. Concrete estimators derive from :class:`AbstractSurfaceEstimator` or
     :class:`AbstractImageEstimator` and are final.
 
-    Class attributes:
-        input_kind: ``"surfaces"`` (a list of RGBs with a mask) or ``"image"`` (``(H, W, 3)``).
+    What the execution layer needs to know about a model is declared here as abstract attributes
+    (equinox's abstract-variable pattern: each final class states them, as a class constant, a
+    field or a property; generic code never probes a model's internals):
+
+    Attributes:
+        input_kind: ``"surfaces"`` (a list of RGBs with a mask) or ``"image"`` (``(H, W, 3)``);
+            fixed by the two intermediate bases.
         estimates_brightness: True for 3-D methods whose estimate magnitude is meaningful (the
             RGB and R+G+B errors and the RGB mapping error apply to them).
-        block_size: scenes per vmapped block in :func:`estimate_batch` (``None``: one ``vmap``
-            over the whole batch). Kernels with a large per-scene working set set it so a
-            block's intermediates stay in cache.
-
-    Property ``default_preprocessing`` names how the image pipeline prepares a photograph for
-    the model (:func:`ccjax.preprocessing.prepare`) when the caller does not say.
+        world_based: True when the answers come from the world's lights, reflectances or
+            canonical light as its camera sees them (gamut mapping, Colour by Correlation, the
+            nets, DB-GW, AVE-ILLUM, NOTHING): on photographs such a model needs the camera's own
+            curves. The statistics methods (grey world, max-RGB, shades of grey, grey edge) use
+            the world only for their fallback light.
+        default_preprocessing: how the image pipeline prepares a photograph for the model
+            (:func:`ccjax.preprocessing.prepare`) when the caller does not say: ``"ave5"``, the
+            thesis' 5x5 block averages (§4.6), for world-based methods; ``"pixels"``, every usable
+            pixel, for the statistics methods, as the field evaluates them.
+        pools_pixels: the estimate is linear in the pixels (grey world), so an image's masked
+            mean as a single datum gives the same answer as every pixel, with one fast reduction.
+        padding: the :class:`Padding` rule (size branches of the kernel).
+        block_size: scenes per vmapped block of :func:`estimate_batch` on each backend
+            (``block_size(backend)``; ``None``: one ``vmap`` over the whole batch).
     """
 
-    input_kind: ClassVar[str] = "surfaces"
-    estimates_brightness: ClassVar[bool] = False
-    block_size: ClassVar[int | None] = None
+    # Type checkers read dataclass-style annotations as constructor fields, so they are shown
+    # class constants; at run time equinox enforces that every final class states each one.
+    if typing.TYPE_CHECKING:
+        input_kind: ClassVar[str]
+        estimates_brightness: ClassVar[bool]
+        world_based: ClassVar[bool]
+        default_preprocessing: ClassVar[str]
+        pools_pixels: ClassVar[bool]
+        padding: ClassVar[Padding]
+    else:
+        input_kind: AbstractClassVar[str]
+        estimates_brightness: AbstractVar[bool]
+        world_based: AbstractVar[bool]
+        default_preprocessing: AbstractVar[str]
+        pools_pixels: AbstractClassVar[bool]
+        padding: AbstractVar[Padding]
 
-    @property
-    def default_preprocessing(self) -> str:
-        """The image pipeline's default input for this model (a :class:`ccjax.preprocessing.Preprocessing`
-        name): ``"ave5"``, the thesis' 5x5 block averages (§4.6), for methods fitted to a world's
-        gamut or statistics (gamut mapping, Colour by Correlation, nets, DB-GW); ``"pixels"``, every
-        usable pixel, for the statistics methods that make no use of a world (grey world, shades of
-        grey, max-RGB, grey edge), as the field evaluates them."""
-        return "ave5"
+    @abc.abstractmethod
+    def block_size(self, backend: str) -> int | None:
+        """Scenes per vmapped block of :func:`estimate_batch` on ``backend`` (``"cpu"``,
+        ``"gpu"``, ``"tpu"``); ``None``: one ``vmap`` over the whole batch."""
 
     @abc.abstractmethod
     def __call__(self, x: Float[Array, "..."], mask: Bool[Array, "..."]) -> Estimate:
@@ -167,7 +225,7 @@ def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Boo
     Returns:
         The batched :class:`Estimate`.
 
-    With ``model.block_size`` set, blocks of that many scenes are vmapped and the blocks mapped
+    With ``model.block_size(backend)`` set, blocks of that many scenes are vmapped and the blocks mapped
     one after another (``jax.lax.map``), so each block's intermediates stay in cache: the gamut
     kernel's fine grid is ~2,000 directions per scene, and one vmap over 4,096 scenes streams
     every stage through memory (measured 1.2-1.4x slower at 8 and 64 surfaces). The blocks are
@@ -184,7 +242,7 @@ def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Boo
             f"x: {type(model).__name__} is {_DESCRIBED[kind]} and estimates batches {batch}; "
             f"got shapes {tuple(x.shape)} and {tuple(mask.shape)}"
         )
-    size = getattr(type(model), "block_size", None)
+    size = model.block_size(jax.default_backend())
     n_scenes = x.shape[0]
     if size is None or n_scenes <= size:
         return jax.vmap(model)(x, mask)
@@ -202,7 +260,7 @@ def input_kind_of(model) -> str:
     """``"surfaces"`` or ``"image"``; ``ValueError`` when ``model`` is not an estimator."""
     if not isinstance(model, AbstractEstimator):
         raise ValueError(f"method: expected a fitted estimator (AbstractEstimator), got {type(model).__name__}")
-    return type(model).input_kind
+    return model.input_kind
 
 
 def require_kind(model: AbstractEstimator, kind: str, what: str) -> None:

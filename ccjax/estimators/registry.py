@@ -95,8 +95,8 @@ def register(
         example: a label the pattern accepts.
         description: one line for listings.
         grammar: the label grammar for people (default: ``example``).
-        input_kind: ``"surfaces"`` or ``"image"``; ``None`` (the older positional form) means the
-            model classes' default, surfaces. :func:`fit` checks that the built model agrees.
+        input_kind: ``"surfaces"`` or ``"image"``; ``None`` (the older positional form) means
+            surfaces. :func:`fit` checks that the built model agrees.
         traceable_fit: the build is pure JAX in the world's arrays.
         differentiable: the model has useful input gradients.
 
@@ -105,7 +105,7 @@ def register(
     """
     if example is None or description is None:
         raise ValueError(f"register {pattern!r}: give example and description")
-    kind = AbstractEstimator.input_kind if input_kind is None else input_kind
+    kind = "surfaces" if input_kind is None else input_kind
     if kind not in KINDS:
         raise ValueError(f"input_kind: expected one of {KINDS}, got {input_kind!r}")
     compiled = re.compile(pattern)

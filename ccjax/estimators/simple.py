@@ -8,13 +8,22 @@ scene has no usable data.
 from __future__ import annotations
 
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, pairwise_reduce, with_fallback
+from ccjax.estimators.base import (
+    NO_PADDING_BRANCH,
+    TINY,
+    AbstractSurfaceEstimator,
+    Estimate,
+    Padding,
+    pairwise_reduce,
+    with_fallback,
+)
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -29,6 +38,15 @@ class Constant(AbstractSurfaceEstimator):
     """A scene-independent estimate: NOTHING (the canonical white) or AVE-ILLUM (§4.5)."""
 
     illuminant: Float[Array, "3"]
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         # The answer ignores the scene, but a scene without one lit valid surface (all masked, all
@@ -55,12 +73,23 @@ class GreyWorld(AbstractSurfaceEstimator):
     scale: Float[Array, "3"]
     fallback: Float[Array, "3"]
     database: bool = eqx.field(static=True, default=False)
-    estimates_brightness = True
+    estimates_brightness: ClassVar[bool] = True
+    pools_pixels: ClassVar[bool] = True
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
     @property
-    def default_preprocessing(self) -> str:
+    def world_based(self) -> bool:  # pyright: ignore[reportIncompatibleVariableOverride]
+        """DB-GW's grey is the world's reflectance database; GW's is a 50 % grey."""
+        return self.database
+
+    @property
+    def default_preprocessing(self) -> str:  # pyright: ignore[reportIncompatibleVariableOverride]
         """``"ave5"`` for DB-GW (world-based, §4.6), ``"pixels"`` for GW (every usable pixel)."""
         return "ave5" if self.database else "pixels"
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         weights = mask.astype(rgb.dtype)
@@ -79,11 +108,16 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
 
     p: float = eqx.field(static=True)  # static: an integer p compiles to multiplications
     fallback: Float[Array, "3"]
+    # A statistics method, evaluated on every usable pixel as the field does.
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = False
+    default_preprocessing: ClassVar[str] = "pixels"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
-    @property
-    def default_preprocessing(self) -> str:
-        """``"pixels"``: a statistics method, evaluated on every usable pixel as the field does."""
-        return "pixels"
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
@@ -121,12 +155,16 @@ class MaxRGB(AbstractSurfaceEstimator):
 
     fallback: Float[Array, "3"]
     temperature: Float[Array, ""] | None = None
-    estimates_brightness = True
+    # A statistics method, evaluated on every usable pixel as the field does.
+    estimates_brightness: ClassVar[bool] = True
+    world_based: ClassVar[bool] = False
+    default_preprocessing: ClassVar[str] = "pixels"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
-    @property
-    def default_preprocessing(self) -> str:
-        """``"pixels"``: a statistics method, evaluated on every usable pixel as the field does."""
-        return "pixels"
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)

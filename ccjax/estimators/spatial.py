@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -35,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import AbstractImageEstimator, Estimate, with_fallback
+from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractImageEstimator, Estimate, Padding, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
 from ccjax.world import World
@@ -201,11 +202,16 @@ class GreyEdge(AbstractImageEstimator):
     fallback: Float[Array, "3"]
     order: int = eqx.field(static=True)
     sigma: float = eqx.field(static=True)
+    # The image and its usable-pixel mask: an image estimator never gets blocks.
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = False
+    default_preprocessing: ClassVar[str] = "pixels"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
-    @property
-    def default_preprocessing(self) -> str:
-        """``"pixels"``: the image and its usable-pixel mask (an image estimator never gets blocks)."""
-        return "pixels"
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
         planes = jnp.moveaxis(image, -1, 0)  # channel-first: the layout XLA's CPU code filters fastest

@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 import typing
 from collections.abc import Callable
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -19,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import AbstractEstimator, AbstractSurfaceEstimator, Estimate
+from ccjax.estimators.base import AbstractEstimator, AbstractSurfaceEstimator, Estimate, Padding
 from ccjax.world import World
 
 EstimatorFit = Callable[[World], AbstractEstimator]
@@ -73,12 +74,27 @@ class Sharpened(AbstractSurfaceEstimator):
     calibration_ok: Bool[Array, ""]
     requires_positive: bool = eqx.field(static=True, default=False)
 
-    # The wrapper measures what the wrapped method measures: a 3-D method's magnitude survives
-    # T ... T^-1, a chromaticity method's does not appear. The base declares a class constant; a
-    # wrapper's answer depends on the instance.
+    world_based: ClassVar[bool] = True  # T is fitted to the world's camera
+    pools_pixels: ClassVar[bool] = False
+
     @property
     def estimates_brightness(self) -> bool:  # pyright: ignore[reportIncompatibleVariableOverride]
+        """What the wrapped method measures: a 3-D method's magnitude survives ``T ... T^-1``."""
         return self.plain.estimates_brightness
+
+    @property
+    def default_preprocessing(self) -> str:  # pyright: ignore[reportIncompatibleVariableOverride]
+        """The wrapped method's input."""
+        return self.plain.default_preprocessing
+
+    @property
+    def padding(self) -> Padding:  # pyright: ignore[reportIncompatibleVariableOverride]
+        """Both runs' size branches (each scene runs ``inner`` and ``plain``)."""
+        return Padding.combine([self.inner.padding, self.plain.padding])
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def estimate_and_revert(
         self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -11,7 +12,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_to_rgb
-from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, with_fallback
+from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, with_fallback
 from ccjax.estimators.correlation.binning import (
     RG_BINS,
     chromaticity,
@@ -79,7 +80,15 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
     n_levels: int = eqx.field(static=True, default=101)
     softness: float | None = eqx.field(static=True, default=None)
     temperature: float = eqx.field(static=True, default=1.0)
-    estimates_brightness = True
+    estimates_brightness: ClassVar[bool] = True
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def _prepare(self, rgb, mask):
         valid = valid_pixels(rgb, mask)

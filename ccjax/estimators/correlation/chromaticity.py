@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -12,7 +13,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_numpy, rg_to_rgb
-from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, with_fallback
+from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, with_fallback
 from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores, valid_pixels
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
@@ -52,6 +53,15 @@ class ColourByCorrelation(AbstractSurfaceEstimator):
     mlm_width: float | None = eqx.field(static=True, default=None)
     softness: float | None = eqx.field(static=True, default=None)
     temperature: float = eqx.field(static=True, default=1.0)
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, " I"]:
         """Normalised log-posterior over the training illuminants (uniform prior)."""
@@ -95,6 +105,15 @@ class ColourByCorrelation01(AbstractSurfaceEstimator):
     illuminant_rg: Float[Array, "I 2"]
     fallback: Float[Array, "3"]
     tolerance: float = eqx.field(static=True, default=1.0)
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         valid = valid_pixels(rgb, mask)

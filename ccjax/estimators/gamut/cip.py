@@ -27,6 +27,7 @@ across the cell), so the boundary error is second order in the grid step.
 from __future__ import annotations
 
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -34,7 +35,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_numpy
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate
+from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, Padding
 from ccjax.estimators.gamut import constraints_cip, geometry
 from ccjax.estimators.gamut.engine import GridOptions, directions, locate, pattern_search, square_grid
 from ccjax.estimators.gamut.relaxation import relaxation_level
@@ -82,6 +83,19 @@ class CIP(AbstractSurfaceEstimator):
     illumination: str = eqx.field(static=True, default="exact")
     cone: str = eqx.field(static=True, default="ball")
     options: GridOptions = eqx.field(static=True, default=GridOptions())
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+
+    @property
+    def padding(self) -> Padding:  # pyright: ignore[reportIncompatibleVariableOverride]
+        """The grid's observation budgets; CIP reads every slot of a scene."""
+        return Padding(self.options.budgets(), None)
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def violation(
         self, rg: Float[Array, "G 2"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]

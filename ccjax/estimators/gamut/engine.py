@@ -89,6 +89,12 @@ class GridOptions:
     first_level: float = relaxation.FIRST_LEVEL
     levels: int = relaxation.LEVELS
 
+    def budgets(self) -> tuple[int, ...]:
+        """The observation counts at which the engine takes another Python branch (sorted, the
+        unset ones left out): padding a scene across one of them changes its path."""
+        limits = (self.fine_observations, self.locate_observations, self.large_scene, self.exact_scene)
+        return tuple(sorted({limit for limit in limits if limit > 0}))
+
 
 # ---------------------------------------------------------------------------------------------
 # direction grids

@@ -13,13 +13,14 @@ parameters (what training needs) but not in its input.
 from __future__ import annotations
 
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, with_fallback
+from ccjax.estimators.base import NO_PADDING_BRANCH, TINY, AbstractSurfaceEstimator, Estimate, Padding, with_fallback
 
 LOG_CHROMA_BINS = 32
 LOG_CHROMA_EXTENT = 2.0
@@ -97,6 +98,15 @@ class LogChromaNet(AbstractSurfaceEstimator):
     fallback: Float[Array, "3"]
     bins: int = eqx.field(static=True, default=LOG_CHROMA_BINS)
     extent: float = eqx.field(static=True, default=LOG_CHROMA_EXTENT)
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         histogram = log_chroma_histogram(rgb, mask, self.bins, self.extent)

@@ -4,6 +4,7 @@ multi-layer perceptron and the estimator that wraps a trained net."""
 from __future__ import annotations
 
 import typing
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -11,7 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from ccjax._colour import chromaticity, rg_bin, rg_to_rgb, valid_pixels
-from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
+from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, Status
 
 BINS = 50
 """(r,g) bins per axis; cells are ``1 / BINS = 0.02`` wide (§4.5.5)."""
@@ -132,7 +133,15 @@ class NeuralNet(AbstractSurfaceEstimator):
 
     net: Mlp
     fallback: Float[Array, "3"]
-    estimates_brightness = False
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         has_data = jnp.any(valid_pixels(rgb, mask))
