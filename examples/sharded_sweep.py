@@ -6,15 +6,14 @@ On a CPU the devices are forced host devices (``XLA_FLAGS=--xla_force_host_platf
 set here before JAX starts when it is not set already); they share the machine's cores, so on CPU
 the speed-up is not the point, the agreement is. On accelerators the same code uses real devices.
 
-Multi-host: the same code runs on several hosts, each started with the same arguments, after
-
-    import jax
-    jax.distributed.initialize()   # coordinator address, process count and id from the environment
-                                   # (or pass coordinator_address=..., num_processes=..., process_id=...)
-
-``jax.devices()`` then lists every host's devices, the mesh below spans them all, and each host
-generates and scores the scenes of its own shard (scene ``i`` is a pure function of its key, so no
-data moves between hosts but the collected errors).
+The mesh is :func:`ccjax.runs.hosts.item_mesh` (one axis, ``"items"``, devices in process order),
+the mesh every ccjax run shards its item axis over. This example runs one process; across processes
+(``jax.distributed``, started by :func:`ccjax.runs.hosts.initialize_from_environment` from
+``JAX_COORDINATOR_ADDRESS``, ``JAX_NUM_PROCESSES`` and ``JAX_PROCESS_ID``) the mesh spans every
+process's devices, each process puts its own block of a chunk's scene keys on it
+(:func:`ccjax.runs.hosts.shard_items`; scene ``i`` is a pure function of its key, so no data moves
+between hosts but the collected errors, :func:`ccjax.runs.hosts.global_value`); see
+``tests/distributed_worker.py``.
 
 Run: ``python examples/sharded_sweep.py [--scenes 20000] [--devices 1,2,4]``; ``--quick``: 1,024 scenes.
 """
@@ -34,6 +33,7 @@ import numpy as np
 
 from ccjax.estimators import registry
 from ccjax.experiments import sweep
+from ccjax.runs import hosts
 from ccjax.world import World
 
 METHODS = ("GW", "shades-of-grey-p6", "soft-RETINEX-t0.01", "C-by-C-MMSE")
@@ -44,7 +44,7 @@ def run(world: World, methods: list, n_devices: int, n_scenes: int, n_surfaces: 
 
     ``methods`` are ``(label, fitted model)`` pairs, fitted once: the warm-up and the timed sweep get
     the same model objects and so share one compiled chunk."""
-    mesh = jax.sharding.Mesh(np.array(jax.devices()[:n_devices]), ("scenes",))
+    mesh = hosts.item_mesh(jax.devices()[:n_devices])
 
     def once(count: int):
         return sweep(

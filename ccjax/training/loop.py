@@ -18,6 +18,7 @@ from tqdm.auto import tqdm
 
 from ccjax import augment, losses, metrics
 from ccjax.estimators.base import AbstractEstimator
+from ccjax.runs import hosts
 from ccjax.training.data import Examples
 from ccjax.training.parameters import constrain, learnable
 
@@ -172,6 +173,7 @@ def fit_to_examples(
     *,
     validation: Examples | None = None,
     progress: bool = True,
+    mesh: jax.sharding.Mesh | None = None,
 ) -> tuple[AbstractEstimator, TrainingLog]:
     """Train ``model``'s learnable parameters (:func:`ccjax.training.learnable`) on ``examples``.
 
@@ -187,6 +189,11 @@ def fit_to_examples(
         schedule: the :class:`Schedule`.
         validation: held-out examples (default: split off ``examples``).
         progress: show a progress bar (one step per tick, the held-out error per epoch).
+        mesh: optional one-axis mesh (:func:`ccjax.runs.hosts.item_mesh`): every batch is split
+            over its devices and the parameters replicated, so each step's gradient is the
+            pooled one (data parallel). Across processes (``jax.distributed``) every process
+            passes the same examples and schedule and puts its block of each batch onto the mesh;
+            ``schedule.batch_size`` must be a multiple of the mesh's device count.
 
     Returns:
         ``(best model, TrainingLog)``.
@@ -202,6 +209,14 @@ def fit_to_examples(
     params, static = eqx.partition(model, spec)
     opt_state = _optimiser(schedule.learning_rate).init(params)
     targets = examples.illuminant
+    if mesh is not None:
+        devices = mesh.devices.size
+        if batch % devices:
+            raise ValueError(
+                f"schedule.batch_size: {batch} examples per step do not split over the mesh's {devices} devices"
+            )
+        params, opt_state, targets = hosts.replicate((params, opt_state, targets), mesh)
+        rows = hosts.process_share(batch)  # this process's block of every batch
     key = jax.random.key(schedule.seed)
     rng = np.random.default_rng(schedule.seed)
     log = TrainingLog(n_train=len(examples), n_heldout=len(validation))
@@ -218,20 +233,15 @@ def fit_to_examples(
         for step in range(steps_per_epoch):
             index = order[step * batch : (step + 1) * batch]
             key, key_step = jax.random.split(key)
-            params, opt_state, loss = _step(
-                params,
-                static,
-                opt_state,
-                examples.x[index],
-                examples.mask[index],
-                examples.illuminant[index],
-                targets,
-                key_step,
-                schedule,
-            )
+            x, mask, illuminant = examples.x[index], examples.mask[index], examples.illuminant[index]
+            if mesh is not None:
+                x, mask, illuminant = hosts.shard_items((x[rows], mask[rows], illuminant[rows]), mesh)
+                key_step = hosts.replicate(key_step, mesh)
+            params, opt_state, loss = _step(params, static, opt_state, x, mask, illuminant, targets, key_step, schedule)
             epoch_losses.append(float(loss))
             bar.update()
-        current = eqx.combine(params, static)
+        # Trained on a mesh, the parameters come back as this process's copy (a model to use anywhere).
+        current = eqx.combine(params if mesh is None else jax.tree.map(jnp.asarray, hosts.global_value(params)), static)
         errors = angular_errors(current, validation)
         median = float(np.median(errors))
         log.train_loss.append(float(np.mean(epoch_losses)))
