@@ -197,7 +197,7 @@ def _reject(path: Path, why: Exception, action: str) -> None:
             stale.unlink()
     reason = " ".join(str(why).split())
     warnings.warn(
-        f"ccjax cache: {path} does not verify ({reason}); {action} and replacing it", CacheEntryRejected, stacklevel=4
+        f"cache entry {path} does not verify ({reason}); {action} and replacing it", CacheEntryRejected, stacklevel=4
     )
 
 
