@@ -40,9 +40,10 @@ import jax
 import numpy as np
 
 from ccjax import materials, scenes, thesis
-from ccjax.estimators import gamut, registry
+from ccjax.estimators import gamut
 from ccjax.estimators.neural import MissingWeightsError
 from ccjax.experiments import protocols
+from ccjax.runs import store
 from ccjax.world import World
 
 SELECTORS = (("MV", 12.0), ("ICA", 12.0), ("SCWIA", 12.0))
@@ -79,7 +80,7 @@ def _fit_rows(world, labels) -> list[tuple]:
     fitted = []
     for label in labels:
         try:
-            fitted.append((label, registry.fit_cached(label, world)))
+            fitted.append((label, store.fit(label, world)))
         except MissingWeightsError:
             print(f"  ({label}: no trained weights here, row skipped)")
     return fitted
@@ -127,7 +128,7 @@ def gamut_sweep(world, configs, n_scenes) -> None:
     columns = [next(iter(c.columns)) for c in conditions]
     others = [label for label in table if "CRULE" in label and not label.startswith("MET-")]
     start = time.perf_counter()
-    others = [(label, registry.fit_cached(label, world)) for label in others]
+    others = [(label, store.fit(label, world)) for label in others]
     fixed = _values(world, others, [c for c in conditions if not _has_metal(c)], n_scenes, "rg")
     print(f"Table 8.2, the {len(others)} non-MET gamut rows without metals: {time.perf_counter() - start:.0f} s")
     reflectance = materials.metal_spectra(materials.COLOURED_METALS, unit_mean=False)

@@ -28,8 +28,8 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
         Estimator,
         Status,
         estimate_batch,
-        fit,
     )
+    from ccjax.runs.store import fit
     from ccjax.scenes import Scenes, ShotNoise, Specular, sample
     from ccjax.spectra import WAVELENGTHS
     from ccjax.training import load_model
@@ -53,7 +53,7 @@ _SOURCES = {
     "cameras": "ccjax.camera",
     "estimate": "ccjax._estimate",
     "estimate_batch": "ccjax.estimators",
-    "fit": "ccjax.estimators",
+    "fit": "ccjax.runs.store",
     "load_model": "ccjax.training",
     "sample": "ccjax.scenes",
 }

@@ -1,18 +1,16 @@
 """The one on-disk cache: one directory rule, one content key, one serialisation.
 
-Everything ccjax keeps between runs lives under :func:`cache_directory`: fitted arrays (``.npz`` +
-``.json``), fitted models (equinox leaf serialisation + ``.json`` metadata with a format version,
-so model files can be shared between users) and JAX's persistent compilation cache (``xla/``).
-Nothing is pickled: a cache file can be read without running code from it.
+Everything ccjax keeps between runs lives under :func:`cache_directory`: cached arrays (``.npz`` +
+``.json``), fitted models and worlds (:mod:`ccjax.runs.store`, verified data-only entries), model
+files (equinox leaf serialisation + ``.json`` metadata with a format version, so model files can be
+shared between users) and JAX's persistent compilation cache (``xla/``). Nothing is pickled: a
+cache file can be read without running code from it.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import enum
 import functools
 import hashlib
-import importlib
 import io
 import json
 import os
@@ -202,169 +200,6 @@ def write_arrays(
         atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode())
     except OSError:
         pass
-
-
-# ---------------------------------------------------------------------------------------------
-# whole fitted models (skeleton as JSON, arrays as .npz), for the fit cache
-
-# Classes a cached skeleton may name (imported by module path when read back).
-_TRUSTED_MODULES = ("ccjax.", "equinox.")
-
-
-class Unserialisable(TypeError):
-    """A model holds something :func:`encode_tree` cannot write as JSON + arrays (a function, an
-    object of an untrusted module); such models are fitted every time instead of cached."""
-
-
-def _qualified(cls: type) -> str:
-    name = f"{cls.__module__}:{cls.__qualname__}"
-    if not cls.__module__.startswith(_TRUSTED_MODULES) or "<locals>" in cls.__qualname__:
-        raise Unserialisable(f"{name} is not a ccjax or equinox class")
-    return name
-
-
-def _resolve(name: str) -> type:
-    module, _, qualname = name.partition(":")
-    if not module.startswith(_TRUSTED_MODULES):
-        raise ValueError(f"cache: {name} is not a ccjax or equinox class")
-    value: Any = importlib.import_module(module)
-    for part in qualname.split("."):
-        value = getattr(value, part)
-    if not isinstance(value, type):
-        raise ValueError(f"cache: {name} is not a class")
-    return value
-
-
-def encode_tree(tree: Any, arrays: dict[str, np.ndarray]) -> Any:
-    """A JSON description of ``tree`` (equinox Modules and frozen dataclasses of ccjax, enums,
-    tuples, lists, string-keyed dicts, JSON scalars), its arrays appended to ``arrays`` by name.
-
-    Arguments:
-        tree: a fitted model or any part of one.
-        arrays: filled with ``"a<i>" -> np.ndarray``.
-
-    Returns:
-        The JSON-able skeleton (see :func:`decode_tree`).
-
-    Raises:
-        Unserialisable: for anything else (functions, foreign objects).
-    """
-    if isinstance(tree, (jax.Array, np.ndarray, np.generic)):
-        name = f"a{len(arrays)}"
-        arrays[name] = np.asarray(tree)
-        kind = "jax" if isinstance(tree, jax.Array) else "numpy" if isinstance(tree, np.ndarray) else "scalar"
-        return {"$array": name, "kind": kind}
-    if tree is None or isinstance(tree, (bool, int, float, str)):
-        return tree
-    if isinstance(tree, enum.Enum):
-        return {"$enum": _qualified(type(tree)), "value": tree.value}
-    if isinstance(tree, eqx.Module) or (dataclasses.is_dataclass(tree) and not isinstance(tree, type)):
-        fields = {f.name: encode_tree(getattr(tree, f.name), arrays) for f in dataclasses.fields(tree)}
-        tag = "$module" if isinstance(tree, eqx.Module) else "$dataclass"
-        return {tag: _qualified(type(tree)), "fields": fields}
-    if isinstance(tree, tuple) and type(tree) is tuple:
-        return {"$tuple": [encode_tree(item, arrays) for item in tree]}
-    if isinstance(tree, list):
-        return [encode_tree(item, arrays) for item in tree]
-    if isinstance(tree, dict) and all(isinstance(k, str) for k in tree):
-        return {"$dict": {k: encode_tree(v, arrays) for k, v in tree.items()}}
-    raise Unserialisable(f"cannot cache a {type(tree).__module__}.{type(tree).__qualname__}")
-
-
-def decode_tree(skeleton: Any, arrays: Mapping[str, np.ndarray]) -> Any:
-    """The inverse of :func:`encode_tree`: Modules are rebuilt field by field as equinox unflattens
-    them (no ``__init__``, so no refitting), other dataclasses through their constructor.
-
-    Arguments:
-        skeleton: from :func:`encode_tree`.
-        arrays: the arrays it names.
-
-    Returns:
-        The tree.
-    """
-    if isinstance(skeleton, list):
-        return [decode_tree(item, arrays) for item in skeleton]
-    if not isinstance(skeleton, dict):
-        return skeleton
-    if "$array" in skeleton:
-        array = arrays[skeleton["$array"]]
-        # device_put, not jnp.asarray: the latter compiles a small copy program per shape.
-        return {"jax": jax.device_put, "numpy": np.asarray}.get(skeleton["kind"], lambda a: a[()])(array)
-    if "$enum" in skeleton:
-        return _resolve(skeleton["$enum"])(skeleton["value"])
-    if "$tuple" in skeleton:
-        return tuple(decode_tree(item, arrays) for item in skeleton["$tuple"])
-    if "$dict" in skeleton:
-        return {k: decode_tree(v, arrays) for k, v in skeleton["$dict"].items()}
-    fields = {name: decode_tree(value, arrays) for name, value in skeleton["fields"].items()}
-    if "$dataclass" in skeleton:
-        return _resolve(skeleton["$dataclass"])(**fields)
-    cls = _resolve(skeleton["$module"])
-    module = object.__new__(cls)
-    for name, value in fields.items():
-        object.__setattr__(module, name, value)
-    return module
-
-
-def _same_tree(a: Any, b: Any) -> bool:
-    leaves_a, tree_a = jax.tree_util.tree_flatten(a)
-    leaves_b, tree_b = jax.tree_util.tree_flatten(b)
-    return tree_a == tree_b and all(
-        type(x) is type(y) and np.array_equal(np.asarray(x), np.asarray(y), equal_nan=True)
-        if isinstance(x, (jax.Array, np.ndarray, np.generic))
-        else x == y
-        for x, y in zip(leaves_a, leaves_b, strict=True)
-    )
-
-
-def cached_model(
-    kind: str, key: str, compute: Callable[[], ModelT], metadata: Mapping[str, Any] | None = None
-) -> tuple[ModelT, bool]:
-    """Load the model stored under (``kind``, ``key``), else ``compute()`` and store it.
-
-    The model is written as a JSON skeleton (``.json``, with ``format`` and ``metadata``) and its
-    arrays (``.npz``); it is stored only if reading it back gives the same tree and arrays, so a
-    model that cannot be cached (:class:`Unserialisable`) is simply computed each time. A damaged
-    entry is recomputed and replaced; an unwritable cache only costs time.
-
-    Arguments:
-        kind: sub-folder of the cache.
-        key: :func:`content_key` of everything the model depends on (include
-            :func:`code_fingerprint` for fits).
-        compute: builds the model (called only on a miss).
-        metadata: JSON-able facts written beside it.
-
-    Returns:
-        ``(model, from_cache)``.
-    """
-    path = cache_directory() / kind / f"{key}.json"
-    if path.is_file():
-        try:
-            record = json.loads(path.read_text())
-            if record.get("format") == FORMAT_VERSION:
-                with np.load(path.with_suffix(".npz"), allow_pickle=False) as stored:
-                    arrays = {name: stored[name] for name in stored.files}
-                return decode_tree(record["skeleton"], arrays), True
-        except (OSError, ValueError, EOFError, KeyError, TypeError, AttributeError, ImportError):
-            pass
-    model = compute()
-    try:
-        arrays: dict[str, np.ndarray] = {}
-        skeleton = encode_tree(model, arrays)
-        stored = decode_tree(skeleton, arrays)
-        if not _same_tree(stored, model):
-            return model, False
-        # Hand back what a later run reads (same values; array types such as JAX's weak types
-        # can differ), so both runs trace the same programs and share XLA's compilation cache.
-        model = stored
-        buffer = io.BytesIO()
-        np.savez(buffer, **arrays)  # pyright: ignore[reportArgumentType]
-        atomic_write(path.with_suffix(".npz"), buffer.getvalue())
-        record = {"format": FORMAT_VERSION, "kind": kind, **(metadata or {}), "skeleton": skeleton}
-        atomic_write(path, json.dumps(record, default=str).encode())
-    except (Unserialisable, OSError, TypeError, ValueError):
-        pass
-    return model, False
 
 
 def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any]) -> Path:

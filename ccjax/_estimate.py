@@ -4,13 +4,10 @@ from __future__ import annotations
 
 import functools
 
-from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, fit_cached, validate_input
+from ccjax._cache import enable_compilation_cache
+from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, validate_input
+from ccjax.runs import store
 from ccjax.world import World
-
-
-@functools.cache
-def _default_world() -> World:
-    return World.default()
 
 
 def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
@@ -20,6 +17,11 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
     or a batch ``(B, P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch
     ``(B, H, W, 3)``. Anything else raises a ``ValueError`` saying what to pass (images reach
     surface estimators through the image pipeline, :mod:`ccjax.preprocessing`).
+
+    A label is fitted through :mod:`ccjax.runs.store` (in memory and on disk, so a later process
+    reads the fit), and the compiled programs go to JAX's persistent compilation cache in the ccjax
+    cache (``<cache>/xla``; unless the program configured its own), so a later process compiles
+    nothing either.
 
     Arguments:
         method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ``"grey-edge-1-6-2"``, ...) or a
@@ -31,9 +33,10 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
     Returns:
         An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like ``x``.
     """
+    enable_compilation_cache()
     if isinstance(method, str):
-        # Memoised per (label, world): repeated calls reuse the fitted model (and its compiled code).
-        model = fit_cached(method, world if world is not None else _default_world())
+        # The same object for repeated calls, so they also reuse its compiled code.
+        model = store.fit(method, world if world is not None else store.world())
     elif isinstance(method, AbstractEstimator):
         model = method
     else:

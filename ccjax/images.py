@@ -3,9 +3,8 @@
 New homes: :mod:`ccjax.io` (reading, writing, ground truth, sRGB preview),
 :mod:`ccjax.preprocessing` (usable pixels, Table 4.6 preprocessing, estimator input),
 :mod:`ccjax.correction` (correction maps and gains), :mod:`ccjax.experiments.evaluation`
-(cached worlds, the evaluation runner, fold worlds), :func:`ccjax.estimators.registry.fit_cached`
-(fitted models, memoised in-process) and :mod:`ccjax._cache` (cache
-directory, compilation cache).
+(the evaluation runner, fold worlds), :mod:`ccjax.runs.store` (cached worlds and fitted models)
+and :mod:`ccjax._cache` (cache directory, compilation cache).
 """
 
 from ccjax._cache import cache_directory as cache_directory
@@ -14,9 +13,7 @@ from ccjax.correction import apply_map as apply_map
 from ccjax.correction import correct as correct
 from ccjax.correction import correction_map as correction_map
 from ccjax.correction import diagonal_gains as diagonal_gains
-from ccjax.estimators.registry import fit_cached as cached_fit  # noqa: F401  (re-exported under its old name)
 from ccjax.experiments.evaluation import ImageResults as ImageResults
-from ccjax.experiments.evaluation import cached_world as cached_world
 from ccjax.experiments.evaluation import fold_worlds as fold_worlds
 from ccjax.experiments.evaluation import run_images as run_images
 from ccjax.io.ground_truth import match_ground_truth as match_ground_truth
@@ -51,3 +48,5 @@ from ccjax.preprocessing import model_input as model_input
 from ccjax.preprocessing import segment as segment
 from ccjax.preprocessing import surfaces as surfaces
 from ccjax.preprocessing import usable_pixels as usable_pixels
+from ccjax.runs.store import fit as cached_fit  # noqa: F401  (re-exported under its old name)
+from ccjax.runs.store import world as cached_world  # noqa: F401  (re-exported under its old name)

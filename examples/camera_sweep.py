@@ -1,6 +1,6 @@
 """One sweep over many cameras at once: ``jax.vmap`` over the cameras' sensor curves for the estimators
 whose fit is traceable (the registry's ``traceable_fit``: fit, scenes and errors are one pure
-function of the sensors), a Python loop with cached fits (``registry.fit_cached``) for the rest.
+function of the sensors), a Python loop with cached fits (``ccjax.runs.store.fit``) for the rest.
 
 Every camera sees the same world (the default world's reflectances and lights, each light
 normalised for that camera as ``World`` does) and the same scene keys, so the table compares
@@ -39,6 +39,7 @@ from ccjax.camera import Camera
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch
 from ccjax.estimators.gamut.model import GamutMapping
+from ccjax.runs import store
 from ccjax.scenes import SceneTables, sample_batch, scene_keys
 from ccjax.world import World
 
@@ -137,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     vmapped_seconds = time.perf_counter() - start
     start = time.perf_counter()
     for label in looped:
-        fits = [registry.fit_cached(label, camera_world(base, sensors[index])) for index in range(len(names))]
+        fits = [store.fit(label, camera_world(base, sensors[index])) for index in range(len(names))]
         fits = same_shapes(fits)
         rows = [
             chunked(functools.partial(looped_angles, model, camera_sensors), keys, chunk)

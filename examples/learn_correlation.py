@@ -36,6 +36,7 @@ from ccjax import augment, losses, scenes
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch, input_kind_of
 from ccjax.estimators.correlation import ColourByCorrelation
+from ccjax.runs import store
 from ccjax.world import World
 
 SIZE = 64
@@ -126,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     rgb, mask = as_surfaces(held_out.image)
     image_mask = jnp.ones(held_out.image.shape[:3], bool)
     models = {"C-by-C-MMSE (learned)": learned, "C-by-C-MMSE (counted)": counted}
-    models |= {label: registry.fit_cached(label, world) for label in ("GW", *gamut, "grey-edge-1-6-2")}
+    models |= {label: store.fit(label, world) for label in ("GW", *gamut, "grey-edge-1-6-2")}
     errors = {}
     for name, model in models.items():
         # The model is an argument of one filter_jit function: the learned and the counted matrix

@@ -31,9 +31,8 @@ import time
 import jax
 import numpy as np
 
-from ccjax.estimators import registry
 from ccjax.experiments import sweep
-from ccjax.runs import hosts
+from ccjax.runs import hosts, store
 from ccjax.world import World
 
 METHODS = ("GW", "shades-of-grey-p6", "soft-RETINEX-t0.01", "C-by-C-MMSE")
@@ -72,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     if max(counts) > len(jax.devices()):
         raise SystemExit(f"--devices: only {len(jax.devices())} devices (set XLA_FLAGS before starting Python)")
     world = World.default()
-    methods = [(label, registry.fit_cached(label, world)) for label in METHODS]
+    methods = [(label, store.fit(label, world)) for label in METHODS]
     print(f"{len(jax.devices())} {jax.devices()[0].platform} devices; {args.scenes} scenes of {args.surfaces} surfaces")
     reference, worst = None, 0.0
     print(f"{'devices':>8}{'seconds':>10}{'scenes/s':>12}{'max rel. diff':>16}")

@@ -55,12 +55,10 @@ def small_test_world() -> World:
 @pytest.fixture
 def small_world_commands(tmp_path, monkeypatch, small_test_world):
     """Every command on the small world, with a private cache in ``tmp_path`` (returned)."""
-    from ccjax import images
-    from ccjax.experiments import evaluation
+    from ccjax.runs import store
 
     monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))
-    for module in (images, evaluation):
-        monkeypatch.setattr(module, "cached_world", lambda *a, **k: small_test_world)
+    monkeypatch.setattr(store, "world", lambda *a, **k: small_test_world)
     return tmp_path
 
 

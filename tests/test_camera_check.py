@@ -9,6 +9,7 @@ import pytest
 import ccjax.io
 from ccjax import cli, io
 from ccjax.experiments import cameras, evaluation
+from ccjax.runs import store
 from ccjax.world import World
 
 SAME_CAMERA = ("Nikon D5100", "Nikon D5300", "Canon EOS 5D Mark II", "Sony ILCE-7M3")
@@ -91,7 +92,7 @@ def test_cameras_check_command(tmp_path, cache, worlds, lights, capsys):
 
 
 def test_cameras_plot_path_is_checked_before_any_work(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(evaluation, "cached_world", lambda *a, **k: pytest.fail("work before the check"))
+    monkeypatch.setattr(store, "world", lambda *a, **k: pytest.fail("work before the check"))
     (tmp_path / "gt.csv").write_text("image,r,g,b\na.png,1,1,1\n")
     argv = ["cameras", "--check", str(tmp_path / "gt.csv"), "--camera", "Nikon D5100", "--plot"]
     (tmp_path / "d.png").mkdir()
@@ -147,10 +148,9 @@ def test_world_based_labels():
 def test_world_based_agrees_with_the_models_default_input():
     """A world-free method gets every pixel by default, a world-based one the thesis' blocks."""
     world = World.default()
-    from ccjax.estimators import registry
 
     for label in ("GW", "DB-GW", "RETINEX", "shades-of-grey-p6", "grey-edge-1-6-2", "AVE-ILLUM"):
-        model = registry.fit_cached(label, world)
+        model = store.fit(label, world)
         assert evaluation.world_based(label) == (model.default_preprocessing != "pixels"), label
 
 

@@ -6,17 +6,17 @@ from __future__ import annotations
 
 import re
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ccjax import _cache, cli
+from ccjax import cli
 from ccjax.estimators import gamut
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.experiments import sweeps
+from ccjax.runs import store
 
 
 def _fits_line(out: str) -> tuple[int, int]:
@@ -79,39 +79,10 @@ def test_sweep_cache_reads_equal_cells_and_computes_only_new_ones(tmp_path, monk
     assert sweeps.sweep(default_world, ["GW"], [4, 16], cache=True, **options).cells_from_cache == 1
 
 
-def test_cached_model_round_trip_and_refusals(tmp_path, monkeypatch, default_world):
-    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
-    model, hit = sweeps.fit_label("ECRULE-MV", default_world)
-    again, hit_again = sweeps.fit_label("ECRULE-MV", default_world)
-    assert (hit, hit_again) == (False, True)
-    assert jax.tree_util.tree_structure(model) == jax.tree_util.tree_structure(again)
-    for a, b in zip(jax.tree_util.tree_leaves(model), jax.tree_util.tree_leaves(again), strict=True):
-        assert type(a) is type(b) and a.dtype == b.dtype
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-
-    class Holder(eqx.Module):
-        function: object = eqx.field(static=True)
-
-    calls = []
-
-    def compute():
-        calls.append(1)
-        return Holder(function=lambda x: x)
-
-    # A function cannot be stored (nor a class defined in a function): computed each time.
-    assert _cache.cached_model("fits", "k" * 24, compute)[1] is False
-    assert _cache.cached_model("fits", "k" * 24, compute)[1] is False
-    assert len(calls) == 2
-    # A damaged entry is recomputed, not trusted.
-    path = next((tmp_path / "fits").glob("*.json"))
-    path.write_text("{not json")
-    assert sweeps.fit_label("ECRULE-MV", default_world)[1] is False
-
-
 def test_padded_sizes_never_cross_an_engine_budget(default_world):
     options = GridOptions()
     budgets = (options.fine_observations, options.locate_observations, options.large_scene)
-    engine = sweeps.fit_label("ECRULE-MV", default_world)[0]
+    engine = store.fit("ECRULE-MV", default_world)
     cip = gamut.cip.fit(default_world, "MV", coarse=8, fine=9)
     surfaces = [1, 4, 8, 16, 32, 33, 48, 64, 128, 256, 1024]
     for models in ([engine], [engine, cip]):
@@ -142,7 +113,7 @@ def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path):
     methods = ("GW", "shades-of-grey-p6", "RETINEX", "C-by-C-MMSE", "ND-ECRULE-MV")
     counts = (4, 8, 32)
     key = jax.random.key(3)
-    models = [sweeps.fit_label(method, default_world)[0] for method in methods]
+    models = [store.fit(method, default_world) for method in methods]
     assert {sweeps.padded_sizes(counts, models)[n] for n in counts} == {32}
     padded = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)
     monkeypatch.setattr(sweeps, "padded_sizes", lambda surfaces, models: {n: n for n in surfaces})

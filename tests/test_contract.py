@@ -28,6 +28,7 @@ from ccjax.estimators.base import (
     estimate_batch,
     require_kind,
 )
+from ccjax.runs import store
 from ccjax.world import World
 
 
@@ -274,12 +275,12 @@ def test_register_forms_and_checks(monkeypatch):
         registry.fit("PROBE-D", World.default())
 
 
-def test_fit_cached_memoises_by_content(world):
-    first = registry.fit_cached("shades-of-grey-p6", world)
-    assert registry.fit_cached("shades-of-grey-p6", World.default()) is first  # equal content, same model
-    assert registry.fit_cached("soft-RETINEX-t0.01", world) is not first
-    softer = registry.fit_cached("RETINEX", world, temperature=0.5)
-    assert softer is not registry.fit_cached("RETINEX", world, temperature=0.25)
+def test_store_memoises_fits_by_content(world):
+    first = store.fit("shades-of-grey-p6", world)
+    assert store.fit("shades-of-grey-p6", World.default()) is first  # equal content, same model
+    assert store.fit("soft-RETINEX-t0.01", world) is not first
+    softer = store.fit("RETINEX", world, temperature=0.5)
+    assert softer is not store.fit("RETINEX", world, temperature=0.25)
     assert math.isclose(float(softer.temperature), 0.5)
     with pytest.raises(ValueError, match="unknown label"):
-        registry.fit_cached("NO-SUCH-METHOD", world)
+        store.fit("NO-SUCH-METHOD", world)

@@ -377,26 +377,9 @@ def test_mlm_width_minimises_mean_error(default_world):
     """The width search (§4.5.4) picks the least mean absolute (r,g) error on its validation scenes,
     and C-by-C-MLM uses the searched width."""
     width = registry.fit("C-by-C-MLM", default_world).mlm_width
-    search = correlation.mlm_width_search(default_world)  # cached by the fit
+    search = correlation.mlm_width_search(default_world)
     assert width == search["best"] == search["widths"][np.argmin(search["mean_error"])]
     assert search["mean_error"].shape == (len(correlation.MLM_WIDTHS),) and np.all(np.isfinite(search["mean_error"]))
-
-
-def test_cache_round_trip(default_world, tmp_path, monkeypatch):
-    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
-    calls = []
-
-    def compute():
-        calls.append(1)
-        return {"x": np.arange(3.0)}
-
-    first = correlation.cached("probe", default_world, {"a": 1}, compute)
-    second = correlation.cached("probe", default_world, {"a": 1}, compute)
-    correlation.cached("probe", default_world, {"a": 2}, compute)
-    assert len(calls) == 2 and np.array_equal(first["x"], second["x"])
-    # One cache for everything ccjax stores: npz + JSON record per entry, one folder per kind.
-    assert len(list(tmp_path.glob("correlation-probe/*.npz"))) == 2
-    assert len(list(tmp_path.glob("correlation-probe/*.json"))) == 2
 
 
 def test_dropped_in_matrix_is_used(default_world, batch):

@@ -12,6 +12,7 @@ import pytest
 
 from ccjax import cli, io
 from ccjax.experiments import evaluation
+from ccjax.runs import store
 
 METHODS = ["GW", "shades-of-grey-p6", "DB-GW", "AVE-ILLUM"]
 
@@ -87,9 +88,8 @@ def test_inputs_are_prepared_once_per_kind_and_compiled_before_timing(setup, mon
     prepare, timed = evaluation.prepare, evaluation._timed
     monkeypatch.setattr(evaluation, "prepare", lambda *a, **k: events.append("prepare") or prepare(*a, **k))
     monkeypatch.setattr(evaluation, "_timed", lambda m, r, v: events.append(("run", r.shape)) or timed(m, r, v))
-    from ccjax.estimators import registry
 
-    models = {label: [registry.fit_cached(label, world)] for label in METHODS}
+    models = {label: [store.fit(label, world)] for label in METHODS}
     results = evaluation.run_images(paths, models)
     assert events.count("prepare") == 2 * 4  # pixels and ave5, once per image each
     runs = [event for event in events if event != "prepare"]

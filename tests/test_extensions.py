@@ -17,6 +17,7 @@ from scipy.spatial import ConvexHull, HalfspaceIntersection
 from ccjax.estimators import gamut, registry
 from ccjax.estimators.gamut import extensions
 from ccjax.estimators.gamut.extensions import Extension
+from ccjax.runs import store
 
 K = 8.0
 
@@ -187,8 +188,8 @@ def test_extension_parsing_and_labels(default_world):
 def test_extended_estimates_are_finite_on_degenerate_scenes(default_world):
     from ccjax.estimators.base import Status
 
-    model = registry.fit_cached("MET-ND-ECRULE-SCWIA-6", default_world)
-    assert registry.fit_cached("MET-ND-ECRULE-SCWIA-6", default_world) is model
+    model = store.fit("MET-ND-ECRULE-SCWIA-6", default_world)
+    assert store.fit("MET-ND-ECRULE-SCWIA-6", default_world) is model
     rgb = np.zeros((4, 8, 3), np.float32)
     mask = np.ones((4, 8), bool)
     rgb[1] = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]] * 2, np.float32) * 0.5  # no diagonal map

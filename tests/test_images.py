@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -15,11 +14,10 @@ from image_files import bad_files
 from small_world import small_world
 
 from ccjax import cli, correction, images, io, preprocessing, scenes
-from ccjax.estimators import registry
 from ccjax.experiments import evaluation
 from ccjax.io import LinearImage
 from ccjax.metrics import angular_error
-from ccjax.world import World
+from ccjax.runs import store
 
 
 @pytest.fixture(scope="module")
@@ -37,41 +35,11 @@ def cache(tmp_path, monkeypatch):
 # Cache and folds
 
 
-def test_cached_world_is_stored_as_arrays_and_rebuilt(world, cache, monkeypatch):
-    monkeypatch.setattr(World, "default", classmethod(lambda cls, camera, seed=0: world))
-    first = evaluation.cached_world("default", seed=3)
-    stored = list((cache / "world").glob("*.npz"))
-    assert len(stored) == 1 and stored[0].with_suffix(".json").is_file()
-    with np.load(stored[0], allow_pickle=False) as arrays:  # arrays only: no pickle
-        np.testing.assert_array_equal(arrays["reflectances"], np.asarray(world.reflectances))
-    fail = classmethod(lambda cls, camera, seed=0: pytest.fail("rebuilt instead of loading the cache"))
-    monkeypatch.setattr(World, "default", fail)
-    second = evaluation.cached_world("default", seed=3)
-    for rebuilt in (first, second):
-        assert rebuilt.name == world.name and rebuilt.camera.name == world.camera.name
-        for got, want in zip(jax.tree_util.tree_leaves(rebuilt), jax.tree_util.tree_leaves(world), strict=True):
-            assert got.dtype == want.dtype
-            np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
-    with pytest.raises(ValueError, match="world"):
-        evaluation.cached_world("thesis")
-
-
-def test_fits_are_memoised_per_world(world, monkeypatch):
-    first = registry.fit_cached("DB-GW", world)
-    monkeypatch.setattr(registry, "fit", lambda *a, **k: pytest.fail("refitted instead of reusing the fit"))
-    assert registry.fit_cached("DB-GW", world) is first
-    other = eqx.tree_at(lambda w: w.train_illuminants, world, world.train_illuminants[:5])
-    with pytest.raises(pytest.fail.Exception, match="refitted"):
-        registry.fit_cached("DB-GW", other)  # another world: fitted again
-    with pytest.raises(ValueError, match="NO-SUCH-METHOD"):
-        registry.fit_cached("NO-SUCH-METHOD", world)
-
-
 def test_old_image_paths_are_the_new_objects():
     assert images.read_image is io.read_image and images.LinearImage is io.LinearImage
     assert images.surfaces is preprocessing.surfaces and images.Preprocessing is preprocessing.Preprocessing
     assert images.correct is correction.correct and images.run_images is evaluation.run_images
-    assert images.cached_fit is registry.fit_cached and images.cached_world is evaluation.cached_world
+    assert images.cached_fit is store.fit and images.cached_world is store.world
     from ccjax import _cache
 
     assert images.cache_directory is _cache.cache_directory
@@ -161,8 +129,7 @@ def test_mondrian_highlights_are_the_light_colour():
 
 
 def _patch_world(monkeypatch, world):
-    for module in (images, evaluation):  # the command line may read either path
-        monkeypatch.setattr(module, "cached_world", lambda *a, **k: world)
+    monkeypatch.setattr(store, "world", lambda *a, **k: world)
 
 
 @pytest.mark.parametrize("command", ["estimate", "correct", "evaluate"])
@@ -252,7 +219,7 @@ def test_round_trip_files_equal_memory(tmp_path, world, cache, monkeypatch, mond
     records = json.loads((tmp_path / "r.json").read_text())["images"]
     codes = io.quantise(np.asarray(batch.image))
     for method in methods:
-        model = registry.fit_cached(method, world)
+        model = store.fit(method, world)
         file_errors = [r["angular"] for r in records if r["method"] == method]
         for index in range(50):
             clipped = np.any(codes[index] >= io.CLIP_FRACTION * 65535, axis=-1)  # read_image's default

@@ -11,6 +11,7 @@ import reference
 from jax.test_util import check_grads
 
 from ccjax import losses
+from ccjax.runs import store
 
 
 @pytest.fixture
@@ -161,7 +162,7 @@ def test_grad_through_vmapped_model_on_1000_scenes(label, default_world):
     from ccjax.estimators import registry
 
     entry, _ = registry.lookup(label)
-    model = registry.fit_cached(label, default_world)
+    model = store.fit(label, default_world)
     if entry.input_kind == "image":
         batch = scenes.sample_mondrians(jax.random.key(0), default_world, 1000, height=16, width=16, n_patches=6)
         x, mask, truth = batch.image, jnp.ones(batch.image.shape[:3], bool), batch.illuminant

@@ -21,8 +21,7 @@ import pixel_reference as reference
 import pytest
 
 from ccjax import cli, io, preprocessing, scenes
-from ccjax.estimators import registry
-from ccjax.experiments import evaluation
+from ccjax.runs import store
 
 SIZE = 128  # an unclipped highlight is real data: in 625 ave5 blocks it moves GW by < 0.5 %
 HIGHLIGHT = round(0.95 * 65535)
@@ -87,7 +86,7 @@ COUNTS = [30, pytest.param(200, marks=pytest.mark.slow)]
 @pytest.mark.parametrize("count", COUNTS)
 def test_library_statistics_methods_match_the_per_pixel_reference(default_world, protocol_sets, count):
     codes, _, paths, _ = protocol_sets(count)
-    models = {label: registry.fit_cached(label, default_world) for label in STATISTICS}
+    models = {label: store.fit(label, default_world) for label in STATISTICS}
     worst = {label: 0.0 for label in STATISTICS}
     zero_pixels = clipped_pixels = 0
     for image_codes, path in zip(codes, paths, strict=True):
@@ -113,10 +112,7 @@ def test_evaluate_statistics_methods_match_the_per_pixel_reference(
     default_world, protocol_sets, tmp_path, monkeypatch, count
 ):
     """``ccjax evaluate`` GW and shades-of-grey-p6 (CSV output) equal the reference per image."""
-    from ccjax import images
-
-    for module in (images, evaluation):  # the command line may read either path
-        monkeypatch.setattr(module, "cached_world", lambda *a, **k: default_world)
+    monkeypatch.setattr(store, "world", lambda *a, **k: default_world)
     codes, _, paths, ground_truth = protocol_sets(count)
     out = tmp_path / "per-image.csv"
     argv = ["evaluate", str(paths[0].parent), "--ground-truth", ground_truth, "--methods", ",".join(STATISTICS)]
@@ -151,8 +147,8 @@ def test_dark_rule_survives_one_unclipped_highlight(default_world, protocol_sets
         bright_paths.append(tmp_path / f"bright-{index:04d}.png")
         io.write_png(bright_paths[-1], _with_highlight(image_codes, index))
     models = {
-        "DB-GW": registry.fit_cached("DB-GW", default_world),  # world-based: ave5 by default
-        "GW at ave5": registry.fit_cached("GW", default_world),
+        "DB-GW": store.fit("DB-GW", default_world),  # world-based: ave5 by default
+        "GW at ave5": store.fit("GW", default_world),
     }
     assert models["DB-GW"].default_preprocessing == "ave5"
     worst = {"count": 0.0, "old-rule count": 0.0, **{label: 0.0 for label in models}}

@@ -11,13 +11,14 @@ import pytest
 from ccjax import io, scenes, training
 from ccjax.estimators import registry
 from ccjax.estimators.correlation import ColourByCorrelation
+from ccjax.runs import store
 
 LABEL = "C-by-C-MMSE"
 
 
 @pytest.fixture(scope="module")
 def start(default_world):
-    return registry.fit_cached(LABEL, default_world)
+    return store.fit(LABEL, default_world)
 
 
 @pytest.fixture(scope="module")
@@ -160,9 +161,7 @@ def test_train_command(image_set, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "pooled" in text and "held-out median angular error" in text
     assert out.exists() and out.with_suffix(".json").exists()
-    assert isinstance(
-        training.load_model(out), type(registry.fit_cached(LABEL, __import__("ccjax").world.World.default()))
-    )
+    assert isinstance(training.load_model(out), type(store.fit(LABEL, __import__("ccjax").world.World.default())))
 
 
 def test_estimate_with_a_model_file(start, examples, image_set, tmp_path, capsys):

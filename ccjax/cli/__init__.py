@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 from typing import TYPE_CHECKING
 
 # Nothing here imports more than the standard library at module level: the console script imports
@@ -177,6 +178,26 @@ def import_holding_interrupts(*names: str) -> None:
             __import__(name)  # as the import statement does (``-X importtime`` reports it)
 
 
+def one_line_warnings(command: str | None, original: Callable[..., str]) -> Callable[..., str]:
+    """A ``warnings.formatwarning`` that writes ccjax's own warnings (e.g. a rejected cache entry)
+    as one line, ``ccjax <command>: warning: <message>``, and others as ``original`` does.
+
+    Arguments:
+        command: the sub-command (for the prefix).
+        original: the format used for other warnings.
+
+    Returns:
+        The format function.
+    """
+
+    def format_warning(message, category, filename, lineno, line=None) -> str:
+        if category.__module__.startswith("ccjax."):
+            return f"{prefix(command)}: warning: {message}\n"
+        return original(message, category, filename, lineno, line)
+
+    return format_warning
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``ccjax`` with ``argv`` (default: the process arguments).
 
@@ -192,9 +213,11 @@ def main(argv: list[str] | None = None) -> int:
     """
     command = None
     previous_hook, sys.unraisablehook = sys.unraisablehook, redeliver_interrupts
+    previous_format = warnings.formatwarning
     try:
         args = build_parser().parse_args(argv)
         command = args.command
+        warnings.formatwarning = one_line_warnings(command, previous_format)
         import_holding_interrupts("numpy", "jax")  # every command needs them
         return int(args.func(args) or 0)
     except BaseException as error:
@@ -225,6 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         raise
     finally:
         sys.unraisablehook = previous_hook
+        warnings.formatwarning = previous_format
         for timer in _REDELIVERIES:
             timer.cancel()
 
@@ -239,6 +263,7 @@ __all__ = [
     "import_holding_interrupts",
     "interrupted",
     "main",
+    "one_line_warnings",
     "prefix",
     "redeliver_interrupts",
 ]

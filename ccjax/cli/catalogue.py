@@ -74,14 +74,15 @@ def run_cameras(args) -> int:
     import numpy as np
 
     from ccjax import io
-    from ccjax.experiments import cameras, evaluation
+    from ccjax.experiments import cameras
+    from ccjax.runs import store
 
     check_plot(args.plot)
     if args.world == "default" and args.camera is None:
         raise ValueError("--camera: name the camera to check the ground truth against (`ccjax cameras` lists them)")
     check_camera_name(args)
     truth = np.stack(list(io.read_ground_truth(args.check).values()))
-    world = evaluation.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
+    world = store.world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
     check = cameras.curve_check(truth, world)
     print(check.message())
     if args.plot:

@@ -65,13 +65,11 @@ def check_camera_name(args) -> None:
 
 
 def build_world(args):
-    """The world of :func:`world_arguments`."""
-    from ccjax.world import World
+    """The world of :func:`world_arguments`, through the store (:func:`ccjax.runs.store.world`)."""
+    from ccjax.runs import store
 
     check_camera_option(args)
-    if args.world == "barnard1999":
-        return World.barnard1999(args.data_dir, seed=args.seed)
-    return World.default(args.camera or "Canon EOS 5D Mark II", seed=args.seed)
+    return store.world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
 def int_list(text: str) -> list[int]:

@@ -84,20 +84,20 @@ def dark_fraction(args) -> float:
 
 
 def fit_cached(label: str, world):
-    """The fitted estimator, memoised (``registry.fit_cached``)."""
-    from ccjax.estimators import registry
+    """The fitted estimator, through the store (:func:`ccjax.runs.store.fit`)."""
+    from ccjax.runs import store
 
-    return registry.fit_cached(label, world)
+    return store.fit(label, world)
 
 
 def image_world(args):
     """The world of the image commands (cached on disk)."""
     from ccjax import _cache
-    from ccjax.experiments import evaluation
+    from ccjax.runs import store
 
     check_camera_option(args)
     _cache.enable_compilation_cache()
-    return evaluation.cached_world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
+    return store.world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
 def check_labels(labels, args=None) -> None:

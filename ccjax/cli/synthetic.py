@@ -170,9 +170,9 @@ def run_reproduce(args) -> int:
     import jax
 
     from ccjax import experiments, thesis
-    from ccjax.world import World
+    from ccjax.runs import store
 
-    world = World.barnard1999(args.data_dir, seed=args.seed)
+    world = store.world("barnard1999", seed=args.seed, data_dir=args.data_dir)
     key = jax.random.key(args.seed)
     if args.table == "5.1":
         # Table 5.1 has its own protocol (sharpening variants, whole-database mapping error).

@@ -12,7 +12,7 @@ from ccjax.estimators.base import (
     require_kind,
     validate_input,
 )
-from ccjax.estimators.registry import Entry, available, fit, fit_cached
+from ccjax.estimators.registry import Entry, available, fit, model_classes
 
 __all__ = [
     "AbstractEstimator",
@@ -25,7 +25,7 @@ __all__ = [
     "available",
     "estimate_batch",
     "fit",
-    "fit_cached",
+    "model_classes",
     "require_kind",
     "validate_input",
 ]

@@ -5,18 +5,26 @@ Each family module declares its labels with the :func:`register` decorator on a 
 ``build(world, match, **options) -> model``; the entry records the label grammar, the input kind
 (surface list or image), whether the fit is traceable (pure JAX, so ``jax.jit`` / ``jax.grad`` of
 ``fit`` with respect to the world work) and whether the model is differentiable with respect to
-its input. :func:`fit` builds a model for a world; :func:`fit_cached` memoises it in-process.
+its input. :func:`fit` builds a model for a world (uncached: :mod:`ccjax.runs.store` keeps fitted
+models); :func:`model_classes` is the allow-list of classes the store rebuilds cached models from.
 """
 
 from __future__ import annotations
 
-import collections
+import dataclasses
+import enum
+import functools
 import importlib
+import inspect
 import re
+import sys
+import types
+import typing
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from ccjax._cache import content_key
+import equinox as eqx
+
 from ccjax.estimators.base import KINDS, AbstractEstimator
 from ccjax.world import World
 
@@ -34,6 +42,8 @@ class Entry:
         input_kind: ``"surfaces"`` (``(P, 3)`` lists) or ``"image"`` (``(H, W, 3)``).
         traceable_fit: the fit is pure JAX (``jax.jit`` of ``fit`` over the world works).
         differentiable: the model has useful gradients with respect to its input RGB.
+        stored: the store may keep fitted models on disk (False where the fit reads files that
+            change, such as trained weights, so that a stored model could go stale).
     """
 
     pattern: re.Pattern
@@ -44,6 +54,7 @@ class Entry:
     input_kind: str = "surfaces"
     traceable_fit: bool = False
     differentiable: bool = False
+    stored: bool = True
 
     def __iter__(self) -> Iterator[str]:
         """Deprecated (one release): unpack as the ``(example, description)`` pair that
@@ -87,6 +98,7 @@ def register(
     input_kind: str | None = None,
     traceable_fit: bool = False,
     differentiable: bool = False,
+    stored: bool = True,
 ):
     """Decorator: register ``build(world, match, **options)`` for the labels matching ``pattern``.
 
@@ -99,6 +111,7 @@ def register(
             surfaces. :func:`fit` checks that the built model agrees.
         traceable_fit: the build is pure JAX in the world's arrays.
         differentiable: the model has useful input gradients.
+        stored: the store may keep fitted models on disk (see :class:`Entry`).
 
     Returns:
         The decorator (it returns ``build`` unchanged).
@@ -114,7 +127,15 @@ def register(
 
     def decorator(build):
         entry = Entry(
-            compiled, build, example, description, grammar or example, kind, bool(traceable_fit), bool(differentiable)
+            compiled,
+            build,
+            example,
+            description,
+            grammar or example,
+            kind,
+            bool(traceable_fit),
+            bool(differentiable),
+            bool(stored),
         )
         _ENTRIES.append(entry)
         return build
@@ -157,35 +178,6 @@ def fit(label: str, world: World, **options) -> AbstractEstimator:
     return model
 
 
-_MEMO: collections.OrderedDict[str, AbstractEstimator] = collections.OrderedDict()
-MEMO_SIZE = 64
-"""Fitted models :func:`fit_cached` keeps (least recently used dropped first)."""
-
-
-def fit_cached(label: str, world: World, **options) -> AbstractEstimator:
-    """:func:`fit`, memoised in this process by the content of ``label``, ``world`` and ``options``
-    (:func:`ccjax._cache.content_key`), for pipelines that fit the same label repeatedly.
-
-    Arguments:
-        label: a registry label.
-        world: the world.
-        **options: passed to the family's fit function.
-
-    Returns:
-        The fitted model (the same object for equal arguments).
-    """
-    lookup(label)  # unknown labels fail before anything is hashed
-    key = content_key("fit", label, world, options)
-    if key in _MEMO:
-        _MEMO.move_to_end(key)
-        return _MEMO[key]
-    model = fit(label, world, **options)
-    _MEMO[key] = model
-    if len(_MEMO) > MEMO_SIZE:
-        _MEMO.popitem(last=False)
-    return model
-
-
 def available() -> list[Entry]:
     """Every registered family's :class:`Entry` (``grammar``, ``example``, ``description``,
     ``input_kind``, ``traceable_fit``, ``differentiable``), in registration order.
@@ -195,3 +187,104 @@ def available() -> list[Entry]:
     """
     _load_families()
     return list(_ENTRIES)
+
+
+# Layers above the estimators: never part of a fitted model (and the top package, whose lazily
+# imported attributes would otherwise reach them).
+_NOT_MODEL_MODULES = ("ccjax.runs", "ccjax.experiments", "ccjax.training", "ccjax.cli")
+
+
+def model_classes() -> dict[str, type]:
+    """The classes a cached fitted model may be rebuilt from, by ``"module:qualname"``: the
+    allow-list of :mod:`ccjax.runs.store` (a name read from a cache file is looked up here, never
+    imported).
+
+    They are the concrete equinox Modules, enums and frozen dataclasses defined in the ccjax modules
+    that the registered families import (directly or through other ccjax modules), and the classes
+    the fields of those classes are declared to hold (e.g. ``equinox.nn.Linear`` inside a net).
+
+    Returns:
+        A new dict ``{qualified name: class}``.
+    """
+    _load_families()
+    starts = tuple(dict.fromkeys([*FAMILIES, *(entry.build.__module__ for entry in _ENTRIES)]))
+    return dict(_model_classes(starts))
+
+
+def qualified_name(cls: type) -> str:
+    """``"module:qualname"`` of ``cls``, the name :func:`model_classes` lists it under.
+
+    Arguments:
+        cls: a class.
+
+    Returns:
+        The name.
+    """
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+@functools.cache
+def _model_classes(starts: tuple[str, ...]) -> tuple[tuple[str, type], ...]:
+    found: dict[str, type] = {}
+    for module in _imported_modules(starts):
+        for value in vars(module).values():
+            if isinstance(value, type) and value.__module__ == module.__name__ and _rebuildable(value):
+                found[qualified_name(value)] = value
+    pending = list(found.values())
+    while pending:
+        for cls in _declared_classes(pending.pop()):
+            name = qualified_name(cls)
+            if name not in found and _rebuildable(cls):
+                found[name] = cls
+                pending.append(cls)
+    return tuple(sorted(found.items()))
+
+
+def _is_model_module(name: str) -> bool:
+    return name.startswith("ccjax.") and not name.startswith(_NOT_MODEL_MODULES)
+
+
+def _imported_modules(starts: tuple[str, ...]) -> list[types.ModuleType]:
+    """``starts`` (the families' modules) and the ccjax modules they reach through their globals
+    (modules, classes and functions they import), transitively."""
+    seen: dict[str, types.ModuleType] = {}
+    pending = [name for name in starts if name in sys.modules]
+    while pending:
+        name = pending.pop()
+        if name in seen or not (_is_model_module(name) or name in starts):
+            continue
+        seen[name] = module = sys.modules[name]
+        for value in vars(module).values():
+            if isinstance(value, types.ModuleType):
+                pending.append(value.__name__)
+            elif isinstance(value, (type, types.FunctionType)) and isinstance(value.__module__, str):
+                pending.append(value.__module__)
+        pending = [other for other in pending if other in sys.modules]
+    return list(seen.values())
+
+
+def _rebuildable(cls: type) -> bool:
+    if inspect.isabstract(cls) or "<locals>" in cls.__qualname__:
+        return False
+    if issubclass(cls, (enum.Enum, eqx.Module)):
+        return True
+    return dataclasses.is_dataclass(cls) and cls.__dataclass_params__.frozen  # pyright: ignore[reportAttributeAccessIssue]
+
+
+def _declared_classes(cls: type) -> Iterator[type]:
+    """The classes named in the annotations of ``cls``'s dataclass fields."""
+    if not dataclasses.is_dataclass(cls):
+        return
+    try:
+        hints = typing.get_type_hints(cls)
+    except (NameError, TypeError, AttributeError):  # an annotation only a type checker can read
+        return
+    for field in dataclasses.fields(cls):
+        yield from _classes_in(hints.get(field.name))
+
+
+def _classes_in(hint) -> Iterator[type]:
+    if isinstance(hint, type) and not typing.get_args(hint):
+        yield hint
+    for argument in typing.get_args(hint):
+        yield from _classes_in(argument)

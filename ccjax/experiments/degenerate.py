@@ -19,6 +19,7 @@ import numpy as np
 from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractEstimator, Status, input_kind_of
 from ccjax.estimators.neural import MissingWeightsError
+from ccjax.runs import store
 from ccjax.scenes import sample
 from ccjax.world import World
 
@@ -216,7 +217,7 @@ def degenerate_sweep(
         if progress is not None:
             progress(label)
         try:
-            model = registry.fit_cached(label, world)
+            model = store.fit(label, world)
         except MissingWeightsError as error:
             skipped.append((label, f"no cached weights ({error})"))
             continue

@@ -6,14 +6,11 @@
 input, with compilation timed apart; :func:`world_based` says which methods depend on the
 world's camera (the command line then requires ``--camera``); :func:`fold_worlds` builds the worlds of a K-fold
 cross-validation whose trained methods learn the lights of the other folds' ground truth.
-:func:`cached_world` gives the worlds the command line uses, stored on disk as arrays (no pickle);
-fitted models come from :func:`ccjax.estimators.registry.fit_cached` (once per process; the
-expensive fits keep their own arrays on disk).
+Worlds and fitted models come from :mod:`ccjax.runs.store`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import os
 import sys
 import time
@@ -26,8 +23,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ccjax._cache import cached_arrays, content_key
-from ccjax.camera import Camera
 from ccjax.estimators.base import AbstractEstimator, Estimate, Status
 from ccjax.io.reading import read_image
 from ccjax.preprocessing import (
@@ -41,62 +36,6 @@ from ccjax.preprocessing import (
     run_model,
 )
 from ccjax.world import World
-
-_WORLD_ARRAYS = ("reflectances", "train_illuminants", "test_illuminants", "canonical")
-
-
-def _source_fingerprint() -> str:
-    """Hash of the package's source: a code change rebuilds every cached world."""
-    digest = hashlib.sha256()
-    for source in sorted(Path(__file__).parents[1].rglob("*.py")):
-        digest.update(source.read_bytes())
-    return digest.hexdigest()
-
-
-def _world_arrays(world: World) -> dict[str, np.ndarray]:
-    if world.camera.linearisation is not None:
-        raise ValueError(f"world: {world.name!r} has a camera linearisation, which cannot be stored as arrays")
-    arrays = {name: np.asarray(getattr(world, name)) for name in _WORLD_ARRAYS}
-    return arrays | {
-        "sensors": np.asarray(world.camera.sensors),
-        "name": np.array(world.name),
-        "camera_name": np.array(world.camera.name),
-    }
-
-
-def _world_from_arrays(arrays: Mapping[str, np.ndarray]) -> World:
-    camera = Camera(sensors=jnp.asarray(arrays["sensors"]), name=str(arrays["camera_name"]))
-    spectra = {name: jnp.asarray(arrays[name]) for name in _WORLD_ARRAYS}
-    return World(**spectra, camera=camera, name=str(arrays["name"]))
-
-
-def cached_world(
-    kind: str = "default", camera: str | None = None, *, seed: int = 0, data_dir: str | os.PathLike | None = None
-) -> World:
-    """``World.default(camera)`` or ``World.barnard1999()``, built once and then read from disk.
-
-    Arguments:
-        kind: ``"default"`` (embedded data) or ``"barnard1999"`` (the thesis world, external data).
-        camera: camera of the default world (default: the Canon EOS 5D Mark II).
-        seed: seed of the illuminant mixtures.
-        data_dir: where the external data lives (``barnard1999``).
-
-    Returns:
-        The world; its arrays are stored in the cache (``world/``) as ``.npz``.
-    """
-    if kind == "barnard1999":
-        from ccjax.data import find_data_file
-
-        source = find_data_file("sfu_barnard/sony_dxc930_380-780-4nm.csv", data_dir)
-        parts, build = (kind, str(source), seed), lambda: World.barnard1999(data_dir, seed=seed)
-    elif kind == "default":
-        name = camera or "Canon EOS 5D Mark II"
-        parts, build = (kind, name, seed), lambda: World.default(name, seed=seed)
-    else:
-        raise ValueError(f"world: expected 'default' or 'barnard1999', got {kind!r}")
-    key = content_key("world", _source_fingerprint(), *parts)
-    arrays = cached_arrays("world", key, lambda: _world_arrays(build()), {"world": list(parts)})
-    return _world_from_arrays(arrays)
 
 
 @dataclass

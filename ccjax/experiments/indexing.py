@@ -232,8 +232,7 @@ def run_indexing(
             11 lights; the issue's synthetic version: 50 objects of 8 reflectances, 20 lights).
         noise: image noise (variance ``a * rho + b``), or None.
         preprocessing, dark: the image pipeline's settings for surface-list methods.
-        fit: ``fit(label, world) -> estimator`` (default
-            :func:`ccjax.estimators.registry.fit_cached`).
+        fit: ``fit(label, world) -> estimator`` (default :func:`ccjax.runs.store.fit`).
         progress: show a progress bar over methods.
 
     Returns:
@@ -241,13 +240,13 @@ def run_indexing(
     """
     from tqdm.auto import tqdm
 
-    from ccjax.estimators.registry import fit_cached
+    from ccjax.runs import store
 
     if not 1 <= n_lights <= world.test_illuminants.shape[0]:
         raise ValueError(f"n_lights: expected 1 .. {world.test_illuminants.shape[0]}, got {n_lights}")
     if not 1 <= n_surfaces <= world.reflectances.shape[0]:
         raise ValueError(f"n_surfaces: expected 1 .. {world.reflectances.shape[0]}, got {n_surfaces}")
-    fit = fit or fit_cached
+    fit = fit or store.fit
     rendered = render_objects(key, world, n_objects, n_surfaces, n_lights, size, noise)
     database_histograms = jax.vmap(rg_histogram)(rendered.database, _dark_mask(rendered.database, dark))
     queries = np.asarray(rendered.queries)

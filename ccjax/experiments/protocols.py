@@ -16,7 +16,6 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ccjax import scenes
-from ccjax.estimators import registry
 from ccjax.experiments.reports import Column, Report
 from ccjax.experiments.sweeps import (
     BRIGHTNESS_STATISTICS,
@@ -27,6 +26,7 @@ from ccjax.experiments.sweeps import (
     resolve_methods,
     scene_errors,
 )
+from ccjax.runs import store
 from ccjax.world import World
 
 
@@ -357,8 +357,8 @@ def reproduce(
     unknown = [m for m in methods if m not in targets]
     if unknown:
         raise ValueError(f"methods: {unknown} are not rows of Table {table}")
-    # Fit once for all conditions (the registry's in-process memo).
-    fitted = resolve_methods(world, [(method, registry.fit_cached(method, world)) for method in methods])
+    # Fit once for all conditions (through the store).
+    fitted = resolve_methods(world, [(method, store.fit(method, world)) for method in methods])
     key = jax.random.key(0) if key is None else key
     rows = []
     for condition, result in zip(

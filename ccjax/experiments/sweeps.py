@@ -21,13 +21,14 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ccjax import metrics
-from ccjax._cache import cached_model, code_fingerprint, content_key, read_arrays, write_arrays
+from ccjax._cache import code_fingerprint, content_key, read_arrays, write_arrays
 from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator, AbstractImageEstimator, estimate_batch
 from ccjax.estimators.gamut.constraints_3d import COUNTED_SLOTS
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.estimators.gamut.model import GamutModel
 from ccjax.experiments.reports import Column, Report
+from ccjax.runs import store
 from ccjax.scenes import Scenes, SceneTables, resolve_options, sample_batch, sample_batch_slots, scene_keys
 from ccjax.world import World
 
@@ -222,8 +223,8 @@ class SweepResult:
         n_scenes: scenes per number of surfaces.
         errors: ``errors[method][surfaces][statistic] -> (n_scenes,)`` NumPy arrays (unit scale),
             with ``"ok"`` booleans; statistics that do not apply to a method are absent.
-        fits_from_cache, fits_fitted: how many labels were read from the disk cache of fits
-            (:func:`fit_label`) and how many were fitted (methods given as models count in neither).
+        fits_from_cache, fits_fitted: how many labels were read from the cache of fits
+            (:mod:`ccjax.runs.store`) and how many were fitted (methods given as models count in neither).
         cells_from_cache: how many (method, surface count) cells of per-scene errors were read
             from the disk cache of sweeps (``sweep(..., cache=True)``) instead of computed.
     """
@@ -489,27 +490,9 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
         )
 
 
-def fit_label(label: str, world: World) -> tuple[AbstractEstimator, bool]:
-    """Fit ``label`` to ``world`` through the disk cache of fits (``<cache>/fits``).
-
-    The key is the label, the world's content and :func:`ccjax._cache.code_fingerprint` (so an
-    edited fit is refitted); models that cannot be cached are fitted every time.
-
-    Arguments:
-        label: a registry label.
-        world: the world.
-
-    Returns:
-        ``(model, from_cache)``.
-    """
-    registry.lookup(label)  # unknown labels fail before anything is hashed
-    key = content_key("fit", label, world, code_fingerprint())
-    return cached_model("fits", key, lambda: registry.fit(label, world), {"label": label, "world": world.name})
-
-
 def resolve_methods(world: World, methods, counts: dict | None = None) -> list[tuple[str, AbstractEstimator]]:
     """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted,
-    through the disk cache of fits, :func:`fit_label`).
+    through the store, :func:`ccjax.runs.store.fit_with_source`).
 
     Arguments:
         world: the world labels are fitted to.
@@ -525,7 +508,7 @@ def resolve_methods(world: World, methods, counts: dict | None = None) -> list[t
     resolved = []
     for method in methods:
         if isinstance(method, str):
-            model, hit = fit_label(method, world)
+            model, hit = store.fit_with_source(method, world)
             if counts is not None:
                 name = "cached" if hit else "fitted"
                 counts[name] = counts.get(name, 0) + 1

@@ -1,11 +1,52 @@
-"""Worlds and fitted models, one memory-plus-disk cache used by the command line and the Python API."""
+"""Worlds and fitted models: one memory-plus-disk cache, used by the command line and the Python API.
+
+In memory, per cache directory: the last :data:`MEMO_SIZE` fitted models and worlds of this process
+(a repeated request returns the same object). On disk, under :func:`ccjax._cache.cache_directory`:
+``fits/<key>.json|.npz`` and ``world/<key>.json|.npz``, keyed by
+:func:`ccjax._cache.content_key` of everything the value depends on (for a fit: the label, the
+world's content, the options, the float width, :func:`ccjax._cache.code_fingerprint`), so a second
+process fits nothing and an edit of ccjax's code refits.
+
+The files are data only (:mod:`ccjax.runs._serial`): arrays without pickle and a JSON record with a
+schema version and a content digest; a model is rebuilt only from the classes of
+:func:`ccjax.estimators.registry.model_classes`, looked up by name. An entry that does not verify
+is fitted (or built) again and replaced, with one :class:`CacheEntryRejected` warning. Models that
+cannot be written as data (a function inside) stay in memory only.
+"""
 
 from __future__ import annotations
 
+import collections
+import contextlib
+import dataclasses
+import enum
 import os
+import warnings
+from collections.abc import Callable, Hashable, Mapping
+from pathlib import Path
+from typing import Any
 
+import equinox as eqx
+import jax
+import numpy as np
+
+from ccjax._cache import cache_directory, code_fingerprint, content_key
+from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractEstimator
+from ccjax.runs import _serial
 from ccjax.world import World
+
+MEMO_SIZE = 64
+"""Fitted models (and, separately, worlds) kept in memory; the least recently used go first."""
+
+
+class CacheEntryRejected(UserWarning):
+    """A cache entry did not verify (damaged, edited, another schema, a class outside the
+    allow-list); it is fitted or built again and replaced."""
+
+
+_MODELS: collections.OrderedDict[Hashable, AbstractEstimator] = collections.OrderedDict()
+_WORLDS: collections.OrderedDict[Hashable, World] = collections.OrderedDict()
 
 
 def world(
@@ -20,11 +61,47 @@ def world(
         data_dir: where the external data lives (``barnard1999``).
 
     Returns:
-        The world.
+        The world (the same object for repeated calls in a process); its arrays are stored in the
+        cache (``world/``).
     """
-    from ccjax.experiments.evaluation import cached_world
+    if kind == "barnard1999":
+        from ccjax.data import find_data_file
 
-    return cached_world(kind, camera, seed=seed, data_dir=data_dir)
+        source = find_data_file("sfu_barnard/sony_dxc930_380-780-4nm.csv", data_dir)
+        parts, build = (kind, str(source), seed), lambda: World.barnard1999(data_dir, seed=seed)
+    elif kind == "default":
+        name = camera or "Canon EOS 5D Mark II"
+        parts, build = (kind, name, seed), lambda: World.default(name, seed=seed)
+    else:
+        raise ValueError(f"world: expected 'default' or 'barnard1999', got {kind!r}")
+    folder = cache_directory()
+    memo = (str(folder), *parts)
+    if memo in _WORLDS:
+        _WORLDS.move_to_end(memo)
+        return _WORLDS[memo]
+    key = content_key("world", code_fingerprint(), *parts)
+    built = _world_on_disk(folder / "world" / f"{key}.json", key, build, {"world": list(parts)})
+    _remember(_WORLDS, memo, built)
+    return built
+
+
+def _world_on_disk(path: Path, key: str, build: Callable[[], World], facts: Mapping[str, Any]) -> World:
+    try:
+        entry = _serial.read_entry(path, "world", key)
+        if entry is not None:
+            return _serial.world_from_parts(*entry)
+    except _serial.Rejected as why:
+        _reject(path, why, "building the world again")
+    fresh = build()
+    try:
+        names, arrays = _serial.world_parts(fresh)
+    except _serial.Unserialisable:
+        return fresh
+    # What a later run reads (the same arrays), so that every run computes with the same world.
+    stored = _serial.world_from_parts(names, arrays)
+    with contextlib.suppress(OSError):  # an unwritable cache only costs time
+        _serial.write_entry(path, "world", key, names, arrays, facts)
+    return stored
 
 
 def fit_with_source(label: str, world: World, **options) -> tuple[AbstractEstimator, bool]:
@@ -33,18 +110,30 @@ def fit_with_source(label: str, world: World, **options) -> tuple[AbstractEstima
     Arguments:
         label: a registry label.
         world: the world.
-        **options: the family's fit options.
+        **options: the family's fit options (JSON-like values, arrays and Modules are part of the
+            key; with any other value the model is fitted every time).
 
     Returns:
-        ``(model, from_cache)``.
+        ``(model, from_cache)``: ``from_cache`` is True when the model came from memory or disk.
     """
-    from ccjax.experiments.sweeps import fit_label
-
-    if options:
-        from ccjax.estimators import registry
-
-        return registry.fit_cached(label, world, **options), False
-    return fit_label(label, world)
+    entry, _ = registry.lookup(label)  # unknown labels fail before anything is hashed
+    if not _keyable(options):
+        return registry.fit(label, world, **options), False
+    folder = cache_directory()
+    width = jax.dtypes.canonicalize_dtype(np.float64).name  # float32, or float64 under x64
+    key = content_key("fit", label, world, options, width, code_fingerprint())
+    memo = (str(folder), key)
+    if memo in _MODELS:
+        _MODELS.move_to_end(memo)
+        return _MODELS[memo], True
+    if entry.stored:
+        facts = {"label": label, "world": world.name, "options": options}
+        path = folder / "fits" / f"{key}.json"
+        model, hit = _fit_on_disk(path, key, lambda: registry.fit(label, world, **options), facts)
+    else:
+        model, hit = registry.fit(label, world, **options), False
+    _remember(_MODELS, memo, model)
+    return model, hit
 
 
 def fit(label: str, world: World, **options) -> AbstractEstimator:
@@ -56,6 +145,85 @@ def fit(label: str, world: World, **options) -> AbstractEstimator:
         **options: the family's fit options.
 
     Returns:
-        The fitted model.
+        The fitted model (the same object for equal arguments within a process).
     """
     return fit_with_source(label, world, **options)[0]
+
+
+def clear_memory() -> None:
+    """Forget the models and worlds kept in memory (the disk cache stays)."""
+    _MODELS.clear()
+    _WORLDS.clear()
+
+
+def _fit_on_disk(
+    path: Path, key: str, compute: Callable[[], AbstractEstimator], facts: Mapping[str, Any]
+) -> tuple[AbstractEstimator, bool]:
+    allowed = registry.model_classes()
+    try:
+        entry = _serial.read_entry(path, "fit", key)
+        if entry is not None:
+            return _decode(*entry, allowed), True
+    except _serial.Rejected as why:
+        _reject(path, why, "refitting")
+    model = compute()
+    try:
+        arrays: dict[str, np.ndarray] = {}
+        skeleton = _serial.encode(model, allowed, arrays)
+        stored = _decode(skeleton, arrays, allowed)
+    except (_serial.Unserialisable, _serial.Rejected):
+        return model, False
+    if not _serial.same_tree(stored, model):
+        return model, False
+    with contextlib.suppress(OSError):  # an unwritable cache only costs time
+        _serial.write_entry(path, "fit", key, skeleton, arrays, facts)
+    # Hand back what a later run reads (the same leaves, types and weak types), so both runs trace
+    # the same programs and share XLA's compilation cache.
+    return stored, False
+
+
+def _decode(skeleton: Any, arrays: Mapping[str, np.ndarray], allowed: Mapping[str, type]) -> Any:
+    try:
+        return _serial.decode(skeleton, arrays, allowed)
+    except (TypeError, ValueError, RecursionError) as error:
+        raise _serial.Rejected(f"{type(error).__name__}: {error}") from None
+
+
+def _reject(path: Path, why: Exception, action: str) -> None:
+    """Remove the entry's files (a new entry replaces them) and say so in one warning line."""
+    # Removed first: where warnings are errors, the next run then starts from a clean entry.
+    for stale in (path, path.with_suffix(".npz")):
+        with contextlib.suppress(OSError):
+            stale.unlink()
+    reason = " ".join(str(why).split())
+    warnings.warn(
+        f"cache entry {path} does not verify ({reason}); {action} and replacing it", CacheEntryRejected, stacklevel=4
+    )
+
+
+def _remember(memo: collections.OrderedDict, key: Hashable, value: Any) -> None:
+    memo[key] = value
+    while len(memo) > MEMO_SIZE:
+        memo.popitem(last=False)
+
+
+def _keyable(value: Any) -> bool:
+    """Whether :func:`ccjax._cache.content_key` captures ``value`` whole (it writes other objects
+    as their ``str``, which may abbreviate)."""
+    if value is None or isinstance(value, (bool, int, float, str, enum.Enum, np.ndarray, np.generic, jax.Array)):
+        return True
+    if isinstance(value, eqx.Module):
+        return True
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return all(
+            isinstance(getattr(value, f.name), (type(None), bool, int, float, str, enum.Enum))
+            for f in dataclasses.fields(value)
+        )
+    if isinstance(value, (list, tuple)):
+        return all(_keyable(item) for item in value)
+    if isinstance(value, Mapping):
+        return all(isinstance(name, str) and _keyable(item) for name, item in value.items())
+    return False
+
+
+__all__ = ["MEMO_SIZE", "CacheEntryRejected", "clear_memory", "fit", "fit_with_source", "world"]

@@ -231,15 +231,14 @@ def load_model(path: str | os.PathLike) -> AbstractEstimator:
     Raises:
         ValueError: not a trained-model file, another format version, or leaves that do not fit.
     """
-    from ccjax.estimators.registry import fit_cached
-    from ccjax.world import World
+    from ccjax.runs import store
 
     path = Path(path)
     record = read_model_metadata(path)
     if record.get("kind") != "trained-estimator" or "label" not in record:
         raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
-    world = World.default(record["camera"], seed=int(record.get("world_seed", 0)))
-    skeleton = fit_cached(record["label"], world)
+    world = store.world("default", record["camera"], seed=int(record.get("world_seed", 0)))
+    skeleton = store.fit(record["label"], world)
     return load_leaves(path, skeleton)
 
 
@@ -279,11 +278,10 @@ def train_on_images(
     Returns:
         ``(trained model, its TrainingLog, CrossValidation or None)``.
     """
-    from ccjax.estimators.registry import fit_cached
-    from ccjax.world import World
+    from ccjax.runs import store
 
     schedule = schedule or Schedule()
-    start = fit_cached(method, World.default(camera, seed=world_seed))
+    start = store.fit(method, store.world("default", camera, seed=world_seed))
     # The inputs ``ccjax evaluate`` gives the method (its default preprocessing), as ``evaluate --train``.
     truth = read_ground_truth(ground_truth)
     pairs = match_ground_truth(truth, directory)

@@ -48,7 +48,6 @@ from ccjax.estimators.correlation.fitting import (
     DEFAULT_SOFTNESS,
     DEFAULT_TEMPERATURE,
     FLUORESCENT_FRACTION,
-    cached,
 )
 from ccjax.estimators.correlation.matrices import (
     BRIGHTNESS_SIGMA,
@@ -142,7 +141,6 @@ __all__ = [
     "ColourByCorrelation01",
     "ColourByCorrelation3D",
     "brightness_matrix",
-    "cached",
     "chromaticity_matrix",
     "compact_rg_cells",
     "fit_brightness",

@@ -24,7 +24,6 @@ from ccjax.estimators.correlation.binning import (
 )
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
-    cached,
     check_positive,
     illuminant_rg_of,
     resolve_fluorescent,
@@ -273,40 +272,28 @@ def fit_brightness(
     if not isinstance(brightness_range, (int, float)) or brightness_range < 1:
         raise ValueError(f"brightness_range: expected a number >= 1, got {brightness_range!r}")
     specular = resolve_specular(specular)
-    options = {
-        "l_bins": l_bins,
-        "sigma": check_positive("sigma", sigma, allow_zero=True),
-        "sigma_l": check_positive("sigma_l", sigma_l, allow_zero=True),
-        "floor": check_positive("floor", floor),
-        "specular": repr(specular),
-        "specular_steps": specular_steps,
-    }
+    sigma = check_positive("sigma", sigma, allow_zero=True)
+    sigma_l = check_positive("sigma_l", sigma_l, allow_zero=True)
+    floor = check_positive("floor", floor)
     fluorescent = resolve_fluorescent(fluorescent)
-    if fluorescent is not None:
-        options["fluorescent"] = fluorescent  # absent otherwise: the keys of existing caches stay valid
     if softness is not None:
         softness = check_positive("softness", softness)
-
-    def compute():
-        matrix, l_total = brightness_matrix(
-            world,
-            l_bins=l_bins,
-            sigma=options["sigma"],
-            sigma_l=options["sigma_l"],
-            floor=options["floor"],
-            specular=specular,
-            specular_steps=specular_steps,
-            fluorescent=fluorescent,
-        )
-        return {"log_probability": matrix, "l_total": np.asarray(l_total)}
-
-    stored = cached("rgb-matrix", world, options, compute)
+    matrix, l_total = brightness_matrix(
+        world,
+        l_bins=l_bins,
+        sigma=sigma,
+        sigma_l=sigma_l,
+        floor=floor,
+        specular=specular,
+        specular_steps=specular_steps,
+        fluorescent=fluorescent,
+    )
     return ColourByCorrelation3D(
-        log_probability=jnp.asarray(stored["log_probability"]),
+        log_probability=jnp.asarray(matrix),
         illuminant_rg=illuminant_rg_of(world),
         fallback=average_illuminant(world),
         l_bins=l_bins,
-        l_total=int(stored["l_total"]),
+        l_total=int(l_total),
         selector=selector,
         method=method,
         brightness_factor=check_positive("brightness_factor", brightness_factor),

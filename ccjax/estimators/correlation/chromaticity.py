@@ -17,7 +17,6 @@ from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, E
 from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores, valid_pixels
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
-    cached,
     check_positive,
     illuminant_rg_of,
     resolve_fluorescent,
@@ -200,8 +199,9 @@ def mlm_width_search(
     world: World, *, sigma: float = 1.0, floor: float = 1e-6, specular=None, fluorescent=None
 ) -> dict[str, np.ndarray]:
     """The MLM mask-width search of :func:`tune_mlm_width` for the MMSE/MAP matrix with these
-    options, cached on disk; ``["best"]`` is the width C-by-C-MLM uses (the validation scenes
-    have no fluorescent surfaces, so FL-C-by-C-MLM's width is tuned for the matte world).
+    options; ``["best"]`` is the width C-by-C-MLM uses (the validation scenes have no fluorescent
+    surfaces, so FL-C-by-C-MLM's width is tuned for the matte world). It runs in the fit of
+    C-by-C-MLM, whose fitted model :mod:`ccjax.runs.store` caches whole.
 
     Arguments:
         world: the world.
@@ -215,15 +215,8 @@ def mlm_width_search(
     """
     specular = resolve_specular(specular)
     fluorescent = resolve_fluorescent(fluorescent)
-    options = {"sigma": sigma, "floor": floor, "specular": repr(specular)}
-    if fluorescent is not None:
-        options["fluorescent"] = fluorescent  # absent otherwise: the keys of existing caches stay valid
-
-    def compute():
-        model = fit_chromaticity(world, "MMSE", sigma=sigma, floor=floor, specular=specular, fluorescent=fluorescent)
-        return tune_mlm_width(world, model, specular=specular)
-
-    return cached("mlm-width", world, options, compute)
+    model = fit_chromaticity(world, "MMSE", sigma=sigma, floor=floor, specular=specular, fluorescent=fluorescent)
+    return tune_mlm_width(world, model, specular=specular)
 
 
 MLM_WIDTHS = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0)

@@ -1,5 +1,5 @@
-"""Fit-time helpers of the Colour by Correlation family: the on-disk cache of slow fits, option
-checks and defaults."""
+"""Fit-time helpers of the Colour by Correlation family: option checks and defaults (fitted models
+are cached whole by :mod:`ccjax.runs.store`)."""
 
 from __future__ import annotations
 
@@ -7,35 +7,14 @@ import jax
 import numpy as np
 from jaxtyping import Array, Float
 
-from ccjax._cache import cached_arrays, content_key
 from ccjax._colour import rg_numpy
 from ccjax.scenes import Specular
 from ccjax.world import World
 
-_CACHE_VERSION = 2  # bump when a cached computation changes
 DEFAULT_SOFTNESS = 0.1
 """Soft binning scale in bins: weights move from one bin to the next over about +-0.3 bins."""
 DEFAULT_TEMPERATURE = 0.05
 """Soft MAP: softmax of the log-posterior divided by this (-> MAP as it -> 0)."""
-
-
-def cached(kind: str, world: World, options: dict, compute) -> dict[str, np.ndarray]:
-    """Load ``compute()``'s arrays for (``kind``, world, options) from the one ccjax cache
-    (:func:`ccjax._cache.cached_arrays`, keyed by :func:`ccjax._cache.content_key` of the world and
-    the options), else compute and store them.
-
-    Arguments:
-        kind: what is cached (``"rgb-matrix"``, ``"mlm-width"``, ...).
-        world: the world the arrays are fitted to.
-        options: JSON-able fit options.
-        compute: builds the arrays on a miss.
-
-    Returns:
-        The arrays by name.
-    """
-    kind = f"correlation-{kind}"
-    key = content_key(kind, _CACHE_VERSION, world, options)
-    return cached_arrays(kind, key, compute, {"world": world.name, "options": options})
 
 
 def illuminant_rg_of(world: World) -> Float[Array, "I 2"]:

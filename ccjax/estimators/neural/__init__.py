@@ -98,6 +98,8 @@ def fit_neural(world: World, label: str = "NEURAL-NET") -> NeuralNet:
     example="NEURAL-NET",
     description="MLP on the binarised (r,g) histogram, matte training (§4.5.5; ccjax train-net)",
     input_kind="surfaces",
+    # The fit reads weights that `ccjax train-net` replaces: a stored model could go stale.
+    stored=False,
 )
 def _build_neural_net(world, match, **options):
     return fit_neural(world, "NEURAL-NET", **options)
@@ -108,6 +110,7 @@ def _build_neural_net(world, match, **options):
     example="SP-NEURAL-NET",
     description="the MLP trained with specularities (§4.5.5; ccjax train-net --specular)",
     input_kind="surfaces",
+    stored=False,
 )
 def _build_sp_neural_net(world, match, **options):
     return fit_neural(world, "SP-NEURAL-NET", **options)
