@@ -1,8 +1,29 @@
 """The execution layer: the one place where fitted models meet data.
 
 * :mod:`ccjax.runs.store`: worlds and fitted models, one memory-plus-disk cache.
+* :mod:`ccjax.runs.sources`: image folders (listed once, headers probed once, images read, masked
+  and prepared per model, one failure record per bad file).
+* :mod:`ccjax.runs.images`: the one image loop, a set of models (optionally one per fold) over a
+  source, compilation timed apart.
+* :mod:`ccjax.runs.folders`: the Python calls over a folder, :func:`estimate_folder` and
+  :func:`correct_folder` (evaluation with folds and training:
+  :func:`ccjax.experiments.folders.evaluate_folder`).
 """
 
-from ccjax.runs import store
+from ccjax.runs import folders, images, sources, store
+from ccjax.runs.folders import correct_folder, estimate_folder
+from ccjax.runs.images import ImageRun, run_models
+from ccjax.runs.sources import ImageFolder, image_folder
 
-__all__ = ["store"]
+__all__ = [
+    "ImageFolder",
+    "ImageRun",
+    "correct_folder",
+    "estimate_folder",
+    "folders",
+    "image_folder",
+    "images",
+    "run_models",
+    "sources",
+    "store",
+]
