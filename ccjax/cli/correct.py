@@ -135,8 +135,8 @@ def run_correct(args) -> int:
     from ccjax.runs.sources import raise_failures
 
     check_labels([args.method], args)
-    require_camera([args.method], args)
     paths, outputs, previews = correct_outputs(args)
+    require_camera([args.method], args)
     sharpening = read_sharpening(args.sharpening)
     source = image_source(paths, args)
 
