@@ -6,6 +6,7 @@ oracles written here), the ground truth read once, and the training readers' usa
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -54,7 +55,7 @@ def _counting(monkeypatch, name):
 def test_source_probes_once_and_records_one_failure_per_bad_file(setup, monkeypatch):
     folder = setup / "set"
     _dataset(folder, count=2)
-    bad = bad_files(setup)
+    bad = [(message, Path(str(path))) for message, path in bad_files(setup)]
     for _, path in bad:
         (folder / path.name).write_bytes(path.read_bytes())
     probes = _counting(monkeypatch, "probe_image")
@@ -138,7 +139,8 @@ def test_evaluate_folder_python_call_matches_the_command(setup, capsys):
     capsys.readouterr()
     report = json.loads((setup / "r.json").read_text())
     evaluation = evaluate_folder(setup / "set", gt, ["GW", "AVE-ILLUM"], folds=3)
-    assert evaluation.fold_source == "image i in fold i mod K" and evaluation.fold_of.tolist() == [0, 1, 2] * 2
+    assert evaluation.fold_source == "image i in fold i mod K" and evaluation.fold_of is not None
+    assert evaluation.fold_of.tolist() == [0, 1, 2] * 2
     again = evaluation.report()
     assert again["images"] == report["images"] and again["folds"] == report["folds"]
     assert evaluation.check is not None  # AVE-ILLUM is world-based
