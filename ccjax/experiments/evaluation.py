@@ -267,8 +267,6 @@ def run_images(
         :class:`ImageResults`.
     """
     paths = list(paths)
-    if masks is not None and len(masks) != len(paths):
-        raise ValueError(f"masks: expected one entry per image ({len(paths)}), got {len(masks)}")
     if paths:
         source = image_folder(paths, masks=masks, read_options=read_options, keep_going=keep_going)
     else:
