@@ -147,15 +147,19 @@ def catalogue_markdown(entries=None, measured: dict | None = None) -> str:
     return "\n".join(lines + [""] + details) + "\n"
 
 
-def _image_input(entry) -> str:
-    # Per-estimator input preparation: statistics methods use every usable pixel, as the field
-    # does; world-based methods the thesis' 5x5 block averages (README, "Command line").
-    from ccjax.experiments.evaluation import world_based
-
-    if world_based(entry.example):
+def _image_input(family: dict) -> str:
+    # Per-estimator input preparation, as the fitted model states it (``model.world_based``,
+    # ``model.default_preprocessing``, recorded in catalogue.json): statistics methods use every
+    # usable pixel, as the field does; world-based methods the thesis' 5x5 block averages.
+    if family.get("world_based") is None:
         return (
-            "the thesis' `ave5` by default (5x5 block averages of usable pixels, dark pixels below 2 % of "
-            "the 99th percentile of R+G+B dropped); needs `--camera`"
+            "the model's own default (`model.default_preprocessing`: `ave5` for world-based methods, which need "
+            "`--camera`; `pixels` for the statistics methods)"
+        )
+    if family["world_based"]:
+        return (
+            f"the thesis' `{family.get('default_preprocessing', 'ave5')}` by default (5x5 block averages of usable "
+            "pixels, dark pixels below 2 % of the 99th percentile of R+G+B dropped); needs `--camera`"
         )
     return "every usable pixel by default (`pixels`: not clipped at 0.98 of saturation, no zero channel, no dark rule)"
 
@@ -174,7 +178,7 @@ def _catalogue_entry(entry, family: dict) -> list[str]:
         f"* **Grammar**: {_code(entry.grammar)}; example {_code(entry.example)}.",
         f"* **Thesis section**: {thesis_section(entry.description)}.",
         f"* **Input**: {INPUTS.get(entry.input_kind, entry.input_kind)}.",
-        f"* **On images** (`ccjax estimate/correct/evaluate`, `preprocessing.prepare`): {_image_input(entry)}.",
+        f"* **On images** (`ccjax estimate/correct/evaluate`, `preprocessing.prepare`): {_image_input(family)}.",
         f"* **Differentiable** with respect to its input: {'yes' if entry.differentiable else 'no'}; "
         f"fit traceable (pure JAX in the world's arrays): {'yes' if entry.traceable_fit else 'no'}.",
         "* **Options**: the label's parameters (grammar above); keyword options go to "

@@ -8,7 +8,7 @@ import pytest
 
 import ccjax.io
 from ccjax import cli, io
-from ccjax.experiments import cameras, evaluation
+from ccjax.experiments import cameras
 from ccjax.runs import store
 from ccjax.world import World
 
@@ -138,20 +138,22 @@ def test_world_based_methods_need_a_camera_before_any_image_is_read(tmp_path, mo
     assert "--camera" in err and "`ccjax cameras`" in err and "GW," not in err
 
 
-def test_world_based_labels():
-    for label in ("ECRULE-MV", "C-by-C-MMSE", "DB-GW", "AVE-ILLUM", "NOTHING", "NEURAL-NET", "CIP-MV"):
-        assert evaluation.world_based(label), label
+def test_world_based_models():
+    """The model hook decides: fitted to the world's lights or reflectances as its camera sees them
+    (needs --camera on photographs), or statistics of the image (the world gives a fallback only)."""
+    world = World.default()
+    for label in ("ECRULE-MV", "C-by-C-MMSE", "DB-GW", "AVE-ILLUM", "NOTHING", "CIP-MV"):
+        assert store.fit(label, world).world_based, label
     for label in ("GW", "RETINEX", "max-rgb", "shades-of-grey-p6", "soft-RETINEX-t0.1", "grey-edge-0-1-0"):
-        assert not evaluation.world_based(label), label
+        assert not store.fit(label, world).world_based, label
 
 
 def test_world_based_agrees_with_the_models_default_input():
     """A world-free method gets every pixel by default, a world-based one the thesis' blocks."""
     world = World.default()
-
     for label in ("GW", "DB-GW", "RETINEX", "shades-of-grey-p6", "grey-edge-1-6-2", "AVE-ILLUM"):
         model = store.fit(label, world)
-        assert evaluation.world_based(label) == (model.default_preprocessing != "pixels"), label
+        assert model.world_based == (model.default_preprocessing != "pixels"), label
 
 
 def test_evaluate_warns_when_the_truth_is_another_cameras(tmp_path, cache, worlds, lights, capsys):

@@ -12,6 +12,8 @@ import pytest
 
 from ccjax import cli, io
 from ccjax.experiments import evaluation
+from ccjax.runs import images as run_images
+from ccjax.runs import sources as run_sources
 from ccjax.runs import store
 
 METHODS = ["GW", "shades-of-grey-p6", "DB-GW", "AVE-ILLUM"]
@@ -85,9 +87,9 @@ def test_inputs_are_prepared_once_per_kind_and_compiled_before_timing(setup, mon
     gt = _dataset(setup / "set", count=4)
     paths = [p for p, _ in io.match_ground_truth(io.read_ground_truth(gt), setup / "set")]
     events = []
-    prepare, timed = evaluation.prepare, evaluation._timed
-    monkeypatch.setattr(evaluation, "prepare", lambda *a, **k: events.append("prepare") or prepare(*a, **k))
-    monkeypatch.setattr(evaluation, "_timed", lambda m, r, v: events.append(("run", r.shape)) or timed(m, r, v))
+    prepare, timed = run_sources.prepare_input, run_images._timed
+    monkeypatch.setattr(run_sources, "prepare_input", lambda *a, **k: events.append("prepare") or prepare(*a, **k))
+    monkeypatch.setattr(run_images, "_timed", lambda m, r, v: events.append(("run", r.shape)) or timed(m, r, v))
 
     models = {label: [store.fit(label, world)] for label in METHODS}
     results = evaluation.run_images(paths, models)

@@ -17,8 +17,10 @@ from image_files import bad_files
 
 import ccjax.io
 from ccjax import cli, io
-from ccjax.cli import common, photos
+from ccjax.cli import common
+from ccjax.cli import estimate as estimate_command
 from ccjax.io import writing
+from ccjax.runs import folders
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +125,7 @@ def test_folder_outputs_never_collide_case_insensitively(setup, capsys):
 
 def test_folder_outputs_helper_gives_distinct_names(tmp_path):
     paths = [Path("d") / name for name in ("a.png", "a.tif", "A.PNG", "a.TIF", "a_tif.tif", "b.nef")]
-    outputs, previews = photos.folder_outputs(paths, tmp_path)
+    outputs, previews = folders.folder_outputs(paths, tmp_path)
     keys = [common.path_key(p) for p in outputs + previews]
     assert len(set(keys)) == len(keys)
     assert outputs[0].name == "a.png" and previews[0].name == "a_preview.png"
@@ -306,16 +308,16 @@ def test_ctrl_c_exits_130_with_one_line(monkeypatch, capsys):
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(photos, "run_estimate", interrupted)
+    monkeypatch.setattr(estimate_command, "run_estimate", interrupted)
     assert cli.main(["estimate", "x.png", "--method", "GW"]) == 130
     assert capsys.readouterr().err == "ccjax estimate: interrupted\n"
 
 
 def test_ctrl_c_in_a_process_has_no_traceback(tmp_path):
     script = (
-        "import sys, ccjax.cli, ccjax.cli.photos as photos\n"
+        "import sys, ccjax.cli, ccjax.cli.estimate as estimate\n"
         "def interrupted(args):\n    raise KeyboardInterrupt\n"
-        "photos.run_estimate = interrupted\n"
+        "estimate.run_estimate = interrupted\n"
         "sys.exit(ccjax.cli.main(['estimate', 'x.png', '--method', 'GW']))\n"
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)

@@ -108,8 +108,8 @@ def write(path: str, text: str) -> None:
 
 
 def path_key(path: str | os.PathLike) -> str:
-    """A comparison key for ``path``: absolute, symbolic links resolved, case folded (two outputs
-    differing only in case would overwrite each other on case-insensitive file systems).
+    """:func:`ccjax.io.writing.path_key` (imported on use: the command modules import only the
+    standard library until the command runs).
 
     Arguments:
         path: any path.
@@ -117,7 +117,9 @@ def path_key(path: str | os.PathLike) -> str:
     Returns:
         The key.
     """
-    return str(Path(path).resolve()).casefold()
+    from ccjax.io.writing import path_key as key
+
+    return key(path)
 
 
 def check_output_file(path: str | os.PathLike, option: str, *, overwrite: bool = True) -> None:

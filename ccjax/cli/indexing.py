@@ -7,7 +7,7 @@ import sys
 import time
 
 from ccjax.cli.common import check_output_file, label_list, world_arguments, write
-from ccjax.cli.photos import check_labels, image_world
+from ccjax.cli.image_options import check_labels, image_world
 
 DEFAULT_INDEXING_METHODS = [
     "ACTUAL",

@@ -1,40 +1,28 @@
 """Evaluating estimators on a folder of images with ground truth (Barnard 1999 §4.6, ch. 5).
 
-:func:`run_images` reads each image once and runs every method on it, each on its own input
-(:func:`ccjax.preprocessing.prepare`: every usable pixel for the statistics methods, the thesis'
-5x5 block averages for the world-based ones), shared between the methods that get the same
-input, with compilation timed apart; :func:`world_based` says which methods depend on the
-world's camera (the command line then requires ``--camera``); :func:`fold_worlds` builds the worlds of a K-fold
-cross-validation whose trained methods learn the lights of the other folds' ground truth.
-Worlds and fitted models come from :mod:`ccjax.runs.store`.
+:func:`run_images` runs methods over image files through the execution layer's image loop
+(:func:`ccjax.runs.images.run_models`: each image read once, each method on its own input,
+compilation timed apart) and gives :class:`ImageResults`, the field's statistics and tables;
+:func:`fold_worlds` builds the worlds of a K-fold cross-validation whose trained methods learn the
+lights of the other folds' ground truth. Whole-folder evaluation with folds and training
+within them is :func:`ccjax.experiments.folders.evaluate_folder`. Worlds and fitted models come
+from :mod:`ccjax.runs.store`.
 """
 
 from __future__ import annotations
 
 import os
-import sys
-import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ccjax.estimators.base import AbstractEstimator, Estimate, Status
-from ccjax.io.reading import read_image
-from ccjax.preprocessing import (
-    DEFAULT_DARK,
-    Preprocessing,
-    as_preprocessing,
-    input_key,
-    input_shapes,
-    prepare,
-    resolve,
-    run_model,
-)
+from ccjax.estimators.base import AbstractEstimator, Status
+from ccjax.preprocessing import DEFAULT_DARK, Preprocessing
+from ccjax.runs.images import ImageRun, run_models
+from ccjax.runs.sources import ImageFolder, image_folder
 from ccjax.world import World
 
 
@@ -66,6 +54,31 @@ class ImageResults:
     preprocessing: dict[str, str] = field(default_factory=dict)
     preparation: dict[str, float] = field(default_factory=dict)
     failures: dict[str, str] = field(default_factory=dict)
+
+    @classmethod
+    def from_run(cls, run: ImageRun, truth: np.ndarray | None = None) -> ImageResults:
+        """The results of the images a run estimated (:class:`ccjax.runs.images.ImageRun`).
+
+        Arguments:
+            run: the run.
+            truth: optional ground truth of each item run, ``(N, 3)``.
+
+        Returns:
+            The :class:`ImageResults` (failed items left out, their reasons in ``failures``).
+        """
+        good = np.flatnonzero(run.done)
+        return cls(
+            paths=[run.paths[i] for i in good],
+            estimates={label: values[good] for label, values in run.estimates.items()},
+            ok={label: values[good] for label, values in run.ok.items()},
+            truth=None if truth is None else np.asarray(truth)[good],
+            status={label: values[good] for label, values in run.status.items()},
+            seconds=dict(run.seconds),
+            warmup=dict(run.warmup),
+            preprocessing=dict(run.preprocessing),
+            preparation=dict(run.preparation),
+            failures=dict(run.failures),
+        )
 
     def angular(self, method: str) -> np.ndarray:
         """``(N,)`` angular errors (degrees) of ``method`` against the ground truth."""
@@ -161,55 +174,6 @@ class ImageResults:
         return rows
 
 
-_WORLD_FREE_EXAMPLES = ("GW", "RETINEX", "soft-RETINEX-t0.01", "shades-of-grey-p6", "grey-edge-1-6-2")
-"""One label of each family whose estimate uses only the image (the world gives a fallback light
-at most): grey world, max-RGB, soft max-RGB, shades of grey, grey edge."""
-
-
-def world_based(label: str) -> bool:
-    """Whether the method named ``label`` is fitted to a world: its answers come from the world's
-    lights, reflectances or canonical light as its camera sees them (gamut mapping, Colour by
-    Correlation, the nets, DB-GW, AVE-ILLUM, NOTHING, ...), so on photographs it needs the
-    camera's own curves. The statistics methods (grey world, max-RGB, shades of grey, grey edge)
-    use the world only for their fallback light.
-
-    A registry entry that states ``world_based`` is believed; otherwise a family is world-free
-    when it is one of the statistics families (new families count as world-based: asking for a
-    camera is the safe default).
-
-    Arguments:
-        label: a registry label.
-
-    Returns:
-        True when the method needs the camera's curves.
-
-    Raises:
-        ValueError: unknown label.
-    """
-    from ccjax.estimators import registry
-
-    entry, _ = registry.lookup(label)
-    stated = getattr(entry, "world_based", None)
-    if stated is not None:
-        return bool(stated)
-    return all(registry.lookup(example)[0] is not entry for example in _WORLD_FREE_EXAMPLES)
-
-
-def _leave_out(bar, seconds: float) -> None:
-    """Leave ``seconds`` (warm-up compilation) out of a tqdm bar's rate and ETA: the clock that
-    the bar's rate is measured from moves forward by that much (what ``tqdm.unpause`` does)."""
-    if not bar.disable:
-        bar.start_t += seconds
-        bar.last_print_t += seconds
-
-
-def _timed(model, rgb, mask) -> tuple[Estimate, float]:
-    start = time.perf_counter()
-    result = run_model(model, rgb, mask)
-    jax.block_until_ready(result)
-    return result, time.perf_counter() - start
-
-
 def run_images(
     paths: Iterable[str | os.PathLike],
     models: Mapping[str, list[AbstractEstimator]],
@@ -223,16 +187,8 @@ def run_images(
     truth: np.ndarray | None = None,
     keep_going: bool = False,
 ) -> ImageResults:
-    """Read each image once and run every method on it, each on its own kind of input.
-
-    Each method gets the input :func:`ccjax.preprocessing.prepare` gives it: its own default
-    (``pixels`` for the statistics methods, ``ave5`` for the world-based ones) or ``preprocessing``
-    for all. Methods that get the same input share it (prepared once per image).
-
-    Compilation is kept out of the timings and of the progress bar's rate: before the bar starts,
-    every method is compiled for every image size the files' headers announce (the methods that
-    get the image); surface lists, whose padded length depends on the content, are compiled when a
-    size class first appears, and that call is timed as warm-up, apart from the run.
+    """Read each image once and run every method on it, each on its own kind of input
+    (:func:`ccjax.runs.images.run_models` over the files).
 
     Arguments:
         paths: image files.
@@ -250,101 +206,21 @@ def run_images(
     Returns:
         :class:`ImageResults`.
     """
-    from tqdm.auto import tqdm
-
-    from ccjax.io.reading import probe_image, read_mask
-
-    paths = [Path(p) for p in paths]
-    options = read_options or {}
-    if masks is not None and len(masks) != len(paths):
-        raise ValueError(f"masks: expected one entry per image ({len(paths)}), got {len(masks)}")
-    if preprocessing is not None:
-        as_preprocessing(preprocessing)  # unknown names fail before any work
-    first = {label: fold_models[0] for label, fold_models in models.items()}
-    keys = {label: input_key(model, preprocessing) for label, model in first.items()}
-    failures: dict[str, str] = {}
-
-    def fail(path: Path, error: Exception) -> None:
-        if not keep_going:
-            raise error
-        message = str(error)
-        failures[str(path)] = message if str(path) in message else f"{path}: {message}"
-
-    # Warm-up for image inputs: their shapes are in the headers.
-    warmup = dict.fromkeys(models, 0.0)
-    compiled: set[tuple] = set()
-    sizes: set[tuple[int, int]] = set()
-    for path in paths:
-        try:
-            info = probe_image(path, **options)
-        except (ValueError, OSError) as error:
-            fail(path, error)
-            continue
-        sizes.add((info.height, info.width))
-    for label, fold_models in models.items():
-        for fold, model in enumerate(fold_models):
-            for size in sorted(sizes):
-                for rgb_shape, mask_shape in input_shapes(model, size, preprocessing):
-                    if len(rgb_shape) == 3:
-                        rgb, mask = jnp.zeros(rgb_shape, jnp.float32), jnp.zeros(mask_shape, bool)
-                        warmup[label] += _timed(model, rgb, mask)[1]
-                        compiled.add((label, fold, rgb_shape))
-
-    good: list[int] = []
-    estimates = {label: np.zeros((len(paths), 3), np.float32) for label in models}
-    ok = {label: np.zeros(len(paths), bool) for label in models}
-    status = {label: np.zeros(len(paths), np.int32) for label in models}
-    seconds = dict.fromkeys(models, 0.0)
-    preparation = {"read": 0.0} | dict.fromkeys(keys.values(), 0.0)
-    bar = tqdm(paths, desc="images", unit="image", disable=not progress, file=sys.stderr)
-    for index, path in enumerate(bar):
-        if str(path) in failures:
-            continue
-        try:
-            start = time.perf_counter()
-            image = read_image(path, **options)
-            mask_file = None if masks is None else masks[index]
-            mask = None if mask_file is None else read_mask(mask_file, image.shape)
-            preparation["read"] += time.perf_counter() - start
-            inputs = {}
-            for label, key in keys.items():
-                if key not in inputs:
-                    start = time.perf_counter()
-                    rgb, valid = prepare(first[label], image, preprocessing, dark=dark, mask=mask)
-                    inputs[key] = (jnp.asarray(rgb), jnp.asarray(valid))
-                    preparation[key] += time.perf_counter() - start
-        except (ValueError, OSError) as error:
-            fail(path, error)
-            continue
-        del image
-        for label, fold_models in models.items():
-            fold = 0 if fold_of is None else int(fold_of[index])
-            rgb, valid = inputs[keys[label]]
-            if (label, fold, rgb.shape) not in compiled:
-                # First call at this shape: compilation, timed apart and left out of the bar.
-                compile_seconds = _timed(fold_models[fold], rgb, valid)[1]
-                warmup[label] += compile_seconds
-                _leave_out(bar, compile_seconds)
-                compiled.add((label, fold, rgb.shape))
-            result, spent = _timed(fold_models[fold], rgb, valid)
-            seconds[label] += spent
-            estimates[label][index] = np.asarray(result.illuminant)
-            ok[label][index] = bool(result.ok)
-            status[label][index] = int(result.status)
-        good.append(index)
-    bar.close()
-    return ImageResults(
-        paths=[str(paths[i]) for i in good],
-        estimates={label: values[good] for label, values in estimates.items()},
-        ok={label: values[good] for label, values in ok.items()},
-        truth=None if truth is None else np.asarray(truth)[good],
-        status={label: values[good] for label, values in status.items()},
-        seconds=seconds,
-        warmup=warmup,
-        preprocessing={label: resolve(model, preprocessing).name for label, model in first.items()},
-        preparation=preparation,
-        failures=failures,
+    paths = list(paths)
+    if paths:
+        source = image_folder(paths, masks=masks, read_options=read_options, keep_going=keep_going)
+    else:
+        source = ImageFolder([], read_options=dict(read_options or {}))
+    run = run_models(
+        source,
+        models,
+        fold_of=fold_of,
+        preprocessing=preprocessing,
+        dark=dark,
+        progress=progress,
+        keep_going=keep_going,
     )
+    return ImageResults.from_run(run, truth)
 
 
 def fold_worlds(

@@ -3,13 +3,15 @@
 The pipeline's first and last steps (Barnard 1999 §4.6): :func:`read_image` gives a
 :class:`LinearImage` on the unit scale with its clipped pixels marked; :func:`write_linear` writes
 a corrected image as 16-bit PNG/TIFF and :func:`write_preview` an 8-bit sRGB preview; ground
-truth is a CSV ``image,r,g,b`` (:func:`read_ground_truth`); :func:`read_mask` reads a pixel mask
+truth is a CSV ``image,r,g,b[,fold]`` (:func:`read_ground_truth_file`); :func:`read_mask` reads a pixel mask
 file (nonzero = usable). :func:`probe_image` validates a file from its header alone, so every
 input can be checked before any work and decoded once.
 """
 
+from ccjax.io.ground_truth import GroundTruth as GroundTruth
 from ccjax.io.ground_truth import match_ground_truth as match_ground_truth
 from ccjax.io.ground_truth import read_ground_truth as read_ground_truth
+from ccjax.io.ground_truth import read_ground_truth_file as read_ground_truth_file
 from ccjax.io.ground_truth import write_ground_truth as write_ground_truth
 from ccjax.io.png import PngHeader as PngHeader
 from ccjax.io.png import png_header as png_header

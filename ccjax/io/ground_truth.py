@@ -3,7 +3,8 @@
 ``image`` is the file name relative to the image folder (its stem also matches), ``r,g,b`` the
 camera RGB of the light (any scale; only its direction is used). The first column may also be
 called ``file`` (the Gehler–Shi files' header is ``File,R,G,B,Fold``). Further header columns are
-ignored (a ``fold`` column is read by :func:`ccjax.training.read_folds`); a row with more fields
+ignored except an optional ``fold`` column (:func:`read_ground_truth_file` returns it with the
+lights, so the file is parsed once); a row with more fields
 than the header, a name given twice, two names that resolve to one file (``im0`` and ``im0.png``),
 and absolute or ``..`` names are errors. A UTF-8 byte-order mark (as spreadsheet programs write)
 is accepted.
@@ -15,6 +16,7 @@ import csv
 import io
 import os
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path, PurePath
 
 import numpy as np
@@ -36,25 +38,45 @@ def _check_name(path: Path, line: int, name: str) -> None:
         )
 
 
-def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read a ground-truth CSV with header ``image,r,g,b`` or ``file,r,g,b`` (camera RGB of the light, any scale).
+@dataclass(frozen=True)
+class GroundTruth:
+    """The rows of a ground-truth CSV.
+
+    Attributes:
+        lights: ``{image name: (3,) float64}`` camera RGB of each image's light, in file order.
+        folds: ``{image name: fold label}`` from the file's ``fold`` column (any integers, as in
+            the Gehler–Shi ``File,R,G,B,Fold`` files), or ``None`` when it has none.
+    """
+
+    lights: dict[str, np.ndarray]
+    folds: dict[str, int] | None = None
+
+
+def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) -> GroundTruth:
+    """Read a ground-truth CSV once: its lights and its optional ``fold`` column.
+
+    The header is ``image,r,g,b`` or ``file,r,g,b`` (camera RGB of the light, any scale), then
+    any columns; a column named ``fold`` (any case) gives each image's fold.
 
     Arguments:
         path: the CSV file (UTF-8, with or without a byte-order mark).
+        with_folds: read the ``fold`` column (False: it is ignored like any other column, and
+            ``folds`` is None).
 
     Returns:
-        ``{image name: (3,) float64}`` in file order.
+        :class:`GroundTruth`.
 
     Raises:
         FileNotFoundError: no such file.
         ValueError: wrong header; a row with more fields than the header; a row that is not finite,
-            non-negative and non-zero; an empty, absolute or ``..`` image name; the same image on
-            two rows (both lines are named); or no rows.
+            non-negative and non-zero; a fold that is not an integer; an empty, absolute or ``..``
+            image name; the same image on two rows (both lines are named); or no rows.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"ground truth: no such file: {path}")
     truth: dict[str, np.ndarray] = {}
+    folds: dict[str, int] = {}
     lines: dict[str, int] = {}
     with open(path, newline="", encoding="utf-8-sig") as handle:
         reader = csv.DictReader(handle)
@@ -62,11 +84,13 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
             fieldnames = reader.fieldnames
         except UnicodeDecodeError as error:
             raise ValueError(f"ground truth: {path} is not UTF-8 text ({error.reason})") from None
-        header = [f.strip().lower() for f in fieldnames or []][:4]
+        names = [f.strip().lower() for f in fieldnames or []]
+        header = names[:4]
         if header[:1] == ["file"]:
             header[0] = "image"
         if fieldnames is None or header != ["image", "r", "g", "b"]:
             raise ValueError(f"ground truth: {path} must have the header image,r,g,b (or file,r,g,b; got {fieldnames})")
+        fold_column = fieldnames[names.index("fold")] if with_folds and "fold" in names else None
         try:
             for row in reader:
                 line = reader.line_num
@@ -75,6 +99,7 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
                         f"ground truth: {path} line {line}: {len(fieldnames) + len(row[None])} fields, "
                         f"the header has {len(fieldnames)}"
                     )
+                fold = None if fold_column is None else row[fold_column]
                 row = dict(zip(["image", "r", "g", "b"], (row[k] for k in fieldnames[:4]), strict=True))
                 try:
                     rgb = np.array([float(row["r"]), float(row["g"]), float(row["b"])])
@@ -88,12 +113,35 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
                 _check_name(path, line, name)
                 if name in truth:
                     raise ValueError(f"ground truth: {path} lines {lines[name]} and {line} both give image {name!r}")
+                if fold_column is not None:
+                    try:
+                        folds[name] = int(fold)  # type: ignore[arg-type]
+                    except (TypeError, ValueError):
+                        raise ValueError(
+                            f"ground truth: {path} line {line}: fold must be an integer, got {fold!r}"
+                        ) from None
                 truth[name], lines[name] = rgb, line
         except UnicodeDecodeError as error:
             raise ValueError(f"ground truth: {path} is not UTF-8 text ({error.reason})") from None
     if not truth:
         raise ValueError(f"ground truth: {path} has no rows")
-    return truth
+    return GroundTruth(truth, None if fold_column is None else folds)
+
+
+def read_ground_truth(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The lights of a ground-truth CSV (:func:`read_ground_truth_file` without the folds).
+
+    Arguments:
+        path: the CSV file (UTF-8, with or without a byte-order mark).
+
+    Returns:
+        ``{image name: (3,) float64}`` in file order.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: as :func:`read_ground_truth_file`.
+    """
+    return read_ground_truth_file(path, with_folds=False).lights
 
 
 def write_ground_truth(path: str | os.PathLike, names: Iterable[str], illuminants: ArrayLike) -> None:

@@ -29,6 +29,19 @@ def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
     return np.round(np.clip(np.asarray(rgb, np.float64), 0.0, 1.0) * levels).astype(dtype)
 
 
+def path_key(path: str | os.PathLike) -> str:
+    """A comparison key for ``path``: absolute, symbolic links resolved, case folded (two outputs
+    differing only in case would overwrite each other on case-insensitive file systems).
+
+    Arguments:
+        path: any path.
+
+    Returns:
+        The key.
+    """
+    return str(Path(path).resolve()).casefold()
+
+
 def write_file(path: str | os.PathLike, data: bytes | str) -> None:
     """Write ``data`` to ``path`` atomically: through a temporary file in the same folder renamed into
     place, so an interrupted write never leaves a partial file under ``path`` and an old file is only

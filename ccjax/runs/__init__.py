@@ -3,8 +3,30 @@
 * :mod:`ccjax.runs.store`: worlds and fitted models, one memory-plus-disk cache.
 * :mod:`ccjax.runs.hosts`: scale-out primitives: processes under ``jax.distributed``, the item
   axis split over processes and sharded over a device mesh, results pooled.
+* :mod:`ccjax.runs.sources`: image folders (listed once, headers probed once, images read, masked
+  and prepared per model, one failure record per bad file).
+* :mod:`ccjax.runs.images`: the one image loop, a set of models (optionally one per fold) over a
+  source, compilation timed apart.
+* :mod:`ccjax.runs.folders`: the Python calls over a folder, :func:`estimate_folder` and
+  :func:`correct_folder` (evaluation with folds and training:
+  :func:`ccjax.experiments.folders.evaluate_folder`).
 """
 
-from ccjax.runs import hosts, store
+from ccjax.runs import folders, hosts, images, sources, store
+from ccjax.runs.folders import correct_folder, estimate_folder
+from ccjax.runs.images import ImageRun, run_models
+from ccjax.runs.sources import ImageFolder, image_folder
 
-__all__ = ["hosts", "store"]
+__all__ = [
+    "ImageFolder",
+    "ImageRun",
+    "correct_folder",
+    "estimate_folder",
+    "folders",
+    "hosts",
+    "image_folder",
+    "images",
+    "run_models",
+    "sources",
+    "store",
+]

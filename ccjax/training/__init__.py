@@ -13,6 +13,7 @@ Typical use::
 from ccjax.training.data import Examples as Examples
 from ccjax.training.data import load_examples as load_examples
 from ccjax.training.data import read_examples as read_examples
+from ccjax.training.data import source_examples as source_examples
 from ccjax.training.folds import CrossValidation as CrossValidation
 from ccjax.training.folds import FoldResult as FoldResult
 from ccjax.training.folds import assign_folds as assign_folds

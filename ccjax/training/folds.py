@@ -4,7 +4,6 @@ folds (never on the fold that is scored), and the model files."""
 
 from __future__ import annotations
 
-import csv
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -14,35 +13,22 @@ import numpy as np
 from ccjax._cache import FORMAT_VERSION, read_model_metadata, save_model
 from ccjax._cache import load_model as load_leaves
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.io.ground_truth import match_ground_truth, read_ground_truth
+from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.training.data import Examples, read_examples
 from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples
 
 
 def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:
     """The ``fold`` column of a ground-truth CSV (header ``image,r,g,b,...,fold``), or ``None``
-    when it has none.
+    when it has none (:func:`ccjax.io.read_ground_truth_file`, which reads the lights with it).
+
+    Arguments:
+        ground_truth: the CSV file.
 
     Returns:
         ``{image name: fold}`` with the file's fold labels (any integers).
     """
-    with open(ground_truth, newline="", encoding="utf-8-sig") as handle:
-        reader = csv.DictReader(handle)
-        names = [name.strip().lower() for name in reader.fieldnames or []]
-        if "fold" not in names:
-            return None
-        image_column = (reader.fieldnames or [])[0]
-        fold_column = (reader.fieldnames or [])[names.index("fold")]
-        folds = {}
-        for row in reader:
-            try:
-                folds[row[image_column].strip()] = int(row[fold_column])
-            except (TypeError, ValueError):
-                raise ValueError(
-                    f"ground truth: {ground_truth} line {reader.line_num}: fold must be an integer, "
-                    f"got {row[fold_column]!r}"
-                ) from None
-    return folds
+    return read_ground_truth_file(ground_truth).folds
 
 
 def assign_folds(names, k: int, *, seed: int = 0, given: dict[str, int] | None = None) -> np.ndarray:
@@ -283,15 +269,17 @@ def train_on_images(
     schedule = schedule or Schedule()
     start = store.fit(method, store.world("default", camera, seed=world_seed))
     # The inputs ``ccjax evaluate`` gives the method (its default preprocessing), as ``evaluate --train``.
-    truth = read_ground_truth(ground_truth)
-    pairs = match_ground_truth(truth, directory)
+    table = read_ground_truth_file(ground_truth)
+    pairs = match_ground_truth(table.lights, directory)
     lights = np.stack([light for _, light in pairs])
-    examples, failures = read_examples([path for path, _ in pairs], lights, list(truth), start, progress=progress)
+    examples, failures = read_examples(
+        [path for path, _ in pairs], lights, list(table.lights), start, progress=progress
+    )
     if failures:
         raise ValueError(f"{len(failures)} images cannot be used for training:\n  " + "\n  ".join(failures.values()))
     validation = None
     if folds is not None:
-        assignment = assign_folds(examples.names, folds, seed=fold_seed, given=read_folds(ground_truth))
+        assignment = assign_folds(examples.names, folds, seed=fold_seed, given=table.folds)
         validation, _ = cross_validate(start, examples, assignment, schedule, method=method, progress=progress)
     model, log = fit_to_examples(start, examples, schedule, progress=progress)
     if out is not None:

@@ -152,6 +152,7 @@ def catalogue(args) -> None:
             continue
         record: dict = {"grammar": entry.grammar, "example": entry.example}
         print(f"- {entry.example}", flush=True)
+        record |= image_input(entry.example)
         if entry.input_kind != "surfaces":
             record["note"] = "image estimator: runs on images (ccjax evaluate), not on surface lists"
         elif not experiments.weights_ready(entry.example, w):
@@ -187,6 +188,19 @@ def catalogue(args) -> None:
         print(f"  {record}", flush=True)
         write()  # after every family: an interrupted run keeps what it measured
     print(f"wrote {path}")
+
+
+def image_input(label: str) -> dict:
+    """What the image commands give ``label``'s model, from the model fitted to the default world:
+    ``world_based`` (needs ``--camera``) and ``default_preprocessing``; empty when it cannot be
+    fitted here (the nets before ``ccjax train-net``)."""
+    from ccjax.runs import store
+
+    try:
+        model = store.fit(label, store.world())
+    except Exception:  # a family that cannot be fitted here says nothing about its input
+        return {}
+    return {"world_based": bool(model.world_based), "default_preprocessing": str(model.default_preprocessing)}
 
 
 PARTS = {"world": world, "reproduce": reproduce, "compare": compare, "catalogue": catalogue}

@@ -1,0 +1,164 @@
+"""``ccjax correct``: linear images corrected to the canonical light (Barnard 1999 §4.4)."""
+
+from __future__ import annotations
+
+from ccjax.cli.common import check_distinct, check_output_file, check_output_folder, path_key, world_arguments
+from ccjax.cli.image_options import (
+    check_labels,
+    dark_fraction,
+    image_arguments,
+    image_source,
+    image_world,
+    require_camera,
+)
+
+OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
+
+
+def add_correct(sub) -> None:
+    p = sub.add_parser(
+        "correct",
+        help="correct linear images to the canonical light",
+        description="Estimate each image's light, map it to the canonical light with a diagonal map and write the "
+        "corrected linear 16-bit image and an 8-bit sRGB preview. IN and OUT are files, or folders (OUT "
+        "is created). Inputs are never replaced; existing outputs need --overwrite; every file is written "
+        "to a temporary name and renamed into place.",
+    )
+    p.add_argument("input", help="a linear image or a folder of them")
+    p.add_argument("output", help="output .png/.tif/.tiff file, or a folder when INPUT is a folder")
+    p.add_argument("--method", required=True, help="estimator label (see `ccjax methods`)")
+    p.add_argument(
+        "--preview",
+        default=None,
+        help="preview path for a single image (default: OUTPUT stem + '_preview.png')",
+    )
+    p.add_argument(
+        "--sharpening",
+        default=None,
+        help="3x3 sharpening transform T (text or .npy; rows = sharpened sensors) for a sharpened-diagonal map T^-1 "
+        "diag(T w_C / T e) T",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace existing output images and previews (they are refused otherwise; inputs are never replaced)",
+    )
+    world_arguments(p)
+    image_arguments(p)
+    p.set_defaults(func=run_correct)
+
+
+def folder_outputs(paths, target):
+    """Output and preview paths in folder ``target`` for each input, no two alike
+    (:func:`ccjax.runs.folders.folder_outputs`).
+
+    Arguments:
+        paths: the input files.
+        target: the output folder.
+
+    Returns:
+        ``(outputs, previews)``, lists of paths.
+    """
+    from ccjax.runs.folders import folder_outputs as outputs
+
+    return outputs(paths, target)
+
+
+def correct_outputs(args):
+    """Validate ``ccjax correct``'s inputs and outputs before any work.
+
+    Arguments:
+        args: the parsed arguments (``input``, ``output``, ``preview``, ``overwrite``).
+
+    Returns:
+        ``(paths, outputs, previews)``: the input files and, for each, its output and preview.
+
+    Raises:
+        ValueError: an output would replace an input or another output, exists without
+            ``--overwrite``, is a folder, or cannot be written.
+    """
+    from pathlib import Path
+
+    from ccjax import io
+
+    source, target = Path(args.input), Path(args.output)
+    if source.is_dir():
+        if path_key(source) == path_key(target):
+            raise ValueError(f"output: {args.output} is the input folder {args.input}; its images would be replaced")
+        if target.exists() and not target.is_dir():
+            raise ValueError(f"output: {target} exists and is not a folder")
+        if args.preview:
+            raise ValueError("--preview: names one image's preview; with a folder the previews go beside the outputs")
+        paths = io.list_images([source])
+        outputs, previews = folder_outputs(paths, target)
+        check_output_folder(target, "output")
+    else:
+        if not source.exists():
+            raise FileNotFoundError(f"input: {source} does not exist")
+        paths, outputs = [source], [target]
+        previews = [Path(args.preview) if args.preview else target.with_name(f"{target.stem}_preview.png")]
+        if target.is_dir():
+            raise ValueError(f"output: {target} is a folder; give a .png, .tif or .tiff file name")
+        if target.suffix.lower() not in OUTPUT_SUFFIXES:
+            raise ValueError(f"output: {target} must end in .png, .tif or .tiff")
+        if not target.parent.is_dir():
+            raise ValueError(f"output: folder {target.parent} does not exist")
+        if previews[0].suffix.lower() != ".png":
+            raise ValueError(f"--preview: {previews[0]} must end in .png")
+    check_distinct(paths, [("output", output) for output in outputs] + [("--preview", preview) for preview in previews])
+    for output, preview in zip(outputs, previews, strict=True):
+        check_output_file(output, "output", overwrite=args.overwrite)
+        check_output_file(preview, "--preview", overwrite=args.overwrite)
+    return paths, outputs, previews
+
+
+def read_sharpening(path):
+    """The ``--sharpening`` matrix (text or ``.npy``), or None.
+
+    Raises:
+        ValueError: not an invertible, finite 3x3 matrix.
+    """
+    import numpy as np
+
+    if not path:
+        return None
+    sharpening = np.load(path) if path.endswith(".npy") else np.loadtxt(path)
+    if sharpening.shape != (3, 3) or not np.all(np.isfinite(sharpening)) or abs(np.linalg.det(sharpening)) < 1e-9:
+        raise ValueError(f"sharpening: {path} must hold an invertible 3x3 matrix")
+    return sharpening
+
+
+def run_correct(args) -> int:
+    import numpy as np
+
+    from ccjax import runs
+    from ccjax.runs.sources import raise_failures
+
+    check_labels([args.method], args)
+    paths, outputs, previews = correct_outputs(args)
+    require_camera([args.method], args)
+    sharpening = read_sharpening(args.sharpening)
+    source = image_source(paths, args)
+
+    def report(index, estimate, output, preview) -> None:
+        illuminant = np.asarray(estimate.illuminant)
+        line = f"(ok: {bool(estimate.ok)}) -> {output}, {preview}"
+        print(f"{source.paths[index]}: illuminant {np.round(illuminant, 5).tolist()} {line}")
+
+    run = runs.correct_folder(
+        source,
+        args.method,
+        outputs,
+        previews=previews,
+        world=image_world(args),
+        sharpening=sharpening,
+        preprocessing=args.preprocessing,
+        dark=dark_fraction(args),
+        progress=not args.no_progress,
+        each=report,
+    )
+    raise_failures(list(run.failures.values()), len(paths))
+    return 0
+
+
+COMMANDS = [add_correct]

@@ -1,0 +1,155 @@
+"""``ccjax evaluate``: methods scored on a folder of images with ground truth, optionally
+cross-validated and trained within folds (:func:`ccjax.experiments.folders.evaluate_folder`)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from ccjax.cli.common import check_output_file, label_list, world_arguments, write
+from ccjax.cli.image_options import (
+    as_option_error,
+    check_labels,
+    dark_fraction,
+    image_arguments,
+    image_world,
+    read_options,
+    require_camera,
+)
+
+
+def add_evaluate(sub) -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="evaluate methods on a folder of images with ground truth",
+        description="Run each method on every image listed in the ground truth and print the angular error "
+        "statistics (mean, median, trimean, best 25%, worst 25%, 95th percentile, max, bootstrap 95% "
+        "confidence intervals of mean and median), each method's input, seconds (compilation apart) and the "
+        "images where it fell back or relaxed, with the reasons. Ground truth: CSV with header image,r,g,b (file "
+        "name in DIR; r,g,b = camera RGB of the light, any scale). World-based methods need --camera; the ground "
+        "truth is checked against that camera's whites (see `ccjax cameras --check`). Unreadable images are "
+        "reported and skipped (exit status 2).",
+    )
+    p.add_argument("directory", help="folder of linear images")
+    p.add_argument("--ground-truth", required=True, help="CSV with header image,r,g,b")
+    p.add_argument("--methods", type=label_list, required=True, help="comma-separated labels")
+    p.add_argument(
+        "--folds",
+        type=int,
+        default=None,
+        help="K-fold cross-validation (K >= 2). Alone: each fold's models learn the expected lights from the other "
+        "folds' ground truth (the CSV's fold column when it has one, else image i in fold i mod K). "
+        "With --train: the folds of training (below)",
+    )
+    p.add_argument(
+        "--train",
+        type=label_list,
+        default=None,
+        metavar="METHODS",
+        help="comma-separated trainable labels (e.g. RGB-C-by-C-MMSE, grey-edge-1-6-2): with --folds K, each is "
+        "started from its fit to the world and trained (ccjax.training) on the other folds' images for each fold, "
+        "never on the fold it scores, and reported as '<label> trained' beside --methods (which are then fitted "
+        "to the world as without --folds). Folds come from the ground truth's fold column when it has one, else "
+        "a random assignment seeded by --seed; statistics per fold and pooled",
+    )
+    p.add_argument(
+        "--epochs",
+        type=int,
+        default=None,
+        help="with --train: training epochs at most (default: ccjax.training.Schedule's, with early stopping)",
+    )
+    p.add_argument(
+        "--json",
+        default=None,
+        help="write summaries and per-image results as JSON ('-' for stdout)",
+    )
+    p.add_argument(
+        "--csv",
+        default=None,
+        help="write one row per image and method (estimate, ok, status, angular error) as CSV ('-' for stdout)",
+    )
+    world_arguments(p)
+    image_arguments(p)
+    p.set_defaults(func=run_evaluate)
+
+
+def check_folds(args) -> None:
+    """Refuse ``--folds`` below 2, ``--train`` without ``--folds`` and ``--epochs`` without
+    ``--train``, before any work."""
+    if args.folds is not None and (isinstance(args.folds, bool) or args.folds < 2):
+        raise ValueError(f"--folds: expected an integer >= 2 (the number of folds), got {args.folds}")
+    if args.train is not None:
+        if not args.train:
+            raise ValueError("--train: expected comma-separated method labels, got none")
+        if args.folds is None:
+            raise ValueError("--train: needs --folds K (each method is trained on the other folds' images)")
+        if len(set(args.train)) != len(args.train):
+            raise ValueError(f"--train: a label is given twice ({', '.join(args.train)})")
+    if args.epochs is not None:
+        if args.train is None:
+            raise ValueError("--epochs: applies to --train only")
+        if args.epochs < 1:
+            raise ValueError(f"--epochs: expected a positive integer, got {args.epochs}")
+
+
+def header(evaluation, args) -> str:
+    """The first line: the world, the inputs and the folds."""
+    if evaluation.trained:
+        folds = (
+            f"; {evaluation.folds} folds ({evaluation.fold_source}): {', '.join(evaluation.trained)} trained within "
+            "them, --methods not"
+        )
+    elif evaluation.folds is not None:
+        folds = f"; {evaluation.folds}-fold cross-validation ({evaluation.fold_source})"
+    else:
+        folds = ""
+    preparation = args.preprocessing or "each method's default"
+    return f"world: {evaluation.world}; preprocessing: {preparation}{folds}"
+
+
+def run_evaluate(args) -> int:
+    from ccjax.experiments.folders import evaluate_folder
+    from ccjax.runs.sources import raise_failures
+
+    start = time.perf_counter()
+    check_folds(args)
+    check_labels(args.methods + (args.train or []), args)
+    for option, path in (("--json", args.json), ("--csv", args.csv)):
+        if path:
+            check_output_file(path, option)
+    require_camera(args.methods + (args.train or []), args)
+    try:
+        evaluation = evaluate_folder(
+            args.directory,
+            args.ground_truth,
+            args.methods,
+            world=image_world(args),
+            folds=args.folds,
+            train=args.train,
+            epochs=args.epochs,
+            seed=args.seed,
+            preprocessing=args.preprocessing,
+            dark=dark_fraction(args),
+            read_options=read_options(args),
+            masks=args.mask,
+            check_camera=args.camera is not None or args.world != "default",
+            progress=not args.no_progress,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except ValueError as error:
+        raise as_option_error(error) from None
+    print(header(evaluation, args))
+    if evaluation.check is not None:
+        print(evaluation.check.message())
+    print(evaluation.tables(), flush=True)
+    if args.json:
+        write(args.json, json.dumps(evaluation.report(), indent=1))
+    if args.csv:
+        write(args.csv, evaluation.csv())
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    raise_failures(evaluation.failures, evaluation.total)
+    return 0
+
+
+COMMANDS = [add_evaluate]

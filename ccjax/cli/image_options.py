@@ -1,0 +1,180 @@
+"""The options and checks shared by the image commands (``estimate``, ``correct``, ``evaluate``):
+input preparation, pixel rules, masks, file levels, progress, the world and the camera check."""
+
+from __future__ import annotations
+
+import argparse
+
+from ccjax.cli.common import check_camera_name, check_camera_option
+
+OPTION_NAMES = {"folds": "--folds", "train": "--train", "epochs": "--epochs", "masks": "--mask"}
+"""The command-line option of each library argument that errors name (see :func:`as_option_error`)."""
+
+
+def image_arguments(parser: argparse.ArgumentParser) -> None:
+    """The image options of ``estimate``, ``correct`` and ``evaluate``: preparation, pixel rules,
+    masks, file levels, progress."""
+    parser.add_argument(
+        "--preprocessing",
+        default=None,
+        help="input preparation for every method: pixels (every usable pixel), ave<b>[-edges][-cluster|-hull] "
+        "(block averages, Table 4.6), seg-<min>-<rg>-<rel>[-hull], generic (default: each method's own: pixels "
+        "for grey world, shades of grey, max-RGB and grey edge, ave5 for the world-based methods)",
+    )
+    parser.add_argument(
+        "--dark",
+        type=float,
+        default=None,
+        help="surface-list preprocessing: drop pixels with R+G+B below this fraction of the 99th percentile "
+        "of the usable pixels' (default: 0.02; pixels inputs have no dark rule)",
+    )
+    parser.add_argument(
+        "--mask",
+        default=None,
+        metavar="DIR",
+        help="folder of mask images, one per image named by its stem (DIR/<stem>.png, .tif or .tiff); "
+        "nonzero = usable pixel, zero = excluded (e.g. the colour checker)",
+    )
+    parser.add_argument(
+        "--black-level",
+        type=float,
+        default=0.0,
+        help="black level in file units (default: 0)",
+    )
+    parser.add_argument(
+        "--saturation",
+        type=float,
+        default=None,
+        help="saturation level in file units: pixels with a channel at or above it are clipped (default: 0.98 "
+        "of the format maximum, e.g. 64224 for 16-bit)",
+    )
+    parser.add_argument(
+        "--assume-linear",
+        action="store_true",
+        help="accept 8-bit files as linear data (they are refused otherwise)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def read_options(args) -> dict:
+    """The keyword arguments of :func:`ccjax.io.read_image` given on the command line."""
+    return {
+        "black_level": args.black_level,
+        "saturation": args.saturation,
+        "assume_linear": args.assume_linear,
+    }
+
+
+def dark_fraction(args) -> float:
+    """``--dark``, or the library default."""
+    from ccjax.preprocessing import DEFAULT_DARK
+
+    return DEFAULT_DARK if args.dark is None else args.dark
+
+
+def image_world(args):
+    """The world of the image commands (:func:`ccjax.runs.store.world`, cached on disk)."""
+    from ccjax import _cache
+    from ccjax.runs import store
+
+    check_camera_option(args)
+    _cache.enable_compilation_cache()
+    return store.world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
+
+
+def check_labels(labels, args=None) -> None:
+    """Refuse unknown method labels, a bad ``--preprocessing`` or ``--dark`` and an unknown
+    ``--camera`` before any work.
+
+    Arguments:
+        labels: estimator labels.
+        args: the parsed arguments (``--preprocessing``, ``--dark``, ``--camera``); None checks
+            the labels only.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: naming the first unknown label and the known grammars, or the bad option.
+    """
+    from ccjax.estimators import registry
+    from ccjax.preprocessing import as_preprocessing
+
+    for label in labels:
+        registry.lookup(label)
+    if args is None:
+        return
+    if args.preprocessing is not None:
+        as_preprocessing(args.preprocessing)
+    if args.dark is not None and not 0 <= args.dark < 1:
+        raise ValueError(f"--dark: expected a fraction in [0, 1), got {args.dark!r}")
+    check_camera_name(args)
+
+
+def require_camera(labels, args) -> None:
+    """Refuse world-based methods (``model.world_based``: fitted to a world seen through a camera's
+    curves) when the camera is not given, before any image is read. Without ``--camera`` the
+    labels are fitted (through the store) to the default world, which the command then uses.
+
+    Arguments:
+        labels: estimator labels (known to the registry).
+        args: the parsed arguments (``--world``, ``--camera``).
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: naming the world-based methods, ``--camera`` and ``ccjax cameras``.
+    """
+    if args.world != "default" or args.camera is not None or not labels:
+        return
+    from ccjax.runs import store
+
+    world = image_world(args)
+    fitted = [label for label in labels if store.fit(label, world).world_based]
+    if fitted:
+        raise ValueError(
+            f"--camera: {', '.join(fitted)} {'is' if len(fitted) == 1 else 'are'} fitted to a world seen through "
+            "a camera's curves; give the camera that took the images with --camera NAME (`ccjax cameras` lists "
+            "the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the ground truth) or "
+            "use --world barnard1999"
+        )
+
+
+def image_source(paths_or_folders, args):
+    """The images of a command (:func:`ccjax.runs.sources.image_folder`): listed, ``--mask`` files
+    found, every header probed once.
+
+    Arguments:
+        paths_or_folders: files and folders.
+        args: the parsed arguments (``--mask`` and the read options).
+
+    Returns:
+        The :class:`~ccjax.runs.sources.ImageFolder`.
+
+    Raises:
+        ValueError: no files, a mask missing, or not one file can be used (one line per file).
+    """
+    from ccjax.runs.sources import image_folder, raise_failures
+
+    source = image_folder(paths_or_folders, masks=args.mask, read_options=read_options(args), mask_argument="--mask")
+    if not source.usable():
+        raise_failures(list(source.failures.values()), len(source))
+    return source
+
+
+def as_option_error(error: ValueError) -> ValueError:
+    """A library error that names an argument (``"folds: ..."``) as the option that gave it
+    (``"--folds: ..."``, :data:`OPTION_NAMES`); other errors unchanged.
+
+    Arguments:
+        error: the library's error.
+
+    Returns:
+        The error for the command line.
+    """
+    message = str(error)
+    name = message.split(":", 1)[0]
+    if name in OPTION_NAMES:
+        return ValueError(OPTION_NAMES[name] + message[len(name) :])
+    return error
