@@ -118,7 +118,7 @@ def _claims(table: str, values: dict) -> None:
 
 
 def _has_metal(condition) -> bool:
-    return "metallic" in dict(condition.scene_options)
+    return condition.options.metallic is not None
 
 
 def gamut_sweep(world, configs, n_scenes) -> None:
@@ -181,7 +181,9 @@ def scene_sweep(world, configs, n_scenes) -> None:
         print(f"highlights s ~ U(0, 4 x {factor:g}) x the metal's {spectra_name} spectrum (mean {spectra.mean():.2f})")
         for name, stat in statistic.items():
             metal = [
-                dataclasses.replace(c, scene_options=(("metallic", scenes.Metallic(max_amount=4.0 * factor)),))
+                dataclasses.replace(
+                    c, options=dataclasses.replace(c.options, metallic=scenes.Metallic(max_amount=4.0 * factor))
+                )
                 for c in protocols.PROTOCOLS[name]
                 if _has_metal(c)
             ]

@@ -5,6 +5,7 @@ unpadded."""
 from __future__ import annotations
 
 import re
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -13,10 +14,10 @@ import pytest
 
 from ccjax import cli
 from ccjax.estimators import gamut
-from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
+from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, Status
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.experiments import sweeps
-from ccjax.runs import store
+from ccjax.runs import store, synthetic
 
 
 def _fits_line(out: str) -> tuple[int, int]:
@@ -116,7 +117,7 @@ def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path):
     models = [store.fit(method, default_world) for method in methods]
     assert {sweeps.padded_sizes(counts, models)[n] for n in counts} == {32}
     padded = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)
-    monkeypatch.setattr(sweeps, "padded_sizes", lambda surfaces, models: {n: n for n in surfaces})
+    monkeypatch.setattr(synthetic, "padded_sizes", lambda surfaces, models: {n: n for n in surfaces})
     plain = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)
     for method in methods:
         for n in counts:
@@ -139,6 +140,15 @@ def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path):
 
 class _FailsAtSixteen(AbstractSurfaceEstimator):
     """Grey world, except that tracing it on 16-surface scenes raises (a model that cannot compile)."""
+
+    estimates_brightness: ClassVar[bool] = True
+    world_based: ClassVar[bool] = False
+    default_preprocessing: ClassVar[str] = "pixels"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        return None
 
     def __call__(self, rgb, mask):
         if rgb.shape[0] == 16:

@@ -1,11 +1,20 @@
 """The degenerate-input sweep (issue 17): finite estimates and honest ``ok`` on every degenerate scene."""
 
+from typing import ClassVar
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from ccjax.estimators import registry
-from ccjax.estimators.base import AbstractEstimator, AbstractSurfaceEstimator, Estimate, Status
+from ccjax.estimators.base import (
+    NO_PADDING_BRANCH,
+    AbstractEstimator,
+    AbstractSurfaceEstimator,
+    Estimate,
+    Padding,
+    Status,
+)
 from ccjax.experiments.degenerate import (
     CASES,
     NO_DATA_CASES,
@@ -81,6 +90,14 @@ class _AlwaysOk(AbstractSurfaceEstimator):
     """Claims ESTIMATED whatever the scene (a deliberately broken estimator)."""
 
     inner: AbstractEstimator
+    estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        return None
 
     def __call__(self, rgb, mask):
         return Estimate(illuminant=self.inner(rgb, mask).illuminant, status=jnp.asarray(int(Status.ESTIMATED)))

@@ -1,7 +1,10 @@
 """Experiments: synthetic sweeps, the thesis tables' protocols, reports, plots, camera studies.
 
-* :mod:`ccjax.experiments.sweeps` -- chunked, sharded sweeps over synthetic scenes (Barnard 1999 §4.7);
-* :mod:`ccjax.experiments.protocols` -- the thesis tables behind ``ccjax reproduce``;
+* :mod:`ccjax.experiments.sweeps` -- sweeps over synthetic scenes (Barnard 1999 §4.7), a client of
+  the engine (:mod:`ccjax.runs.synthetic`: chunking, padding, compile-ahead, sharding);
+* :mod:`ccjax.experiments.results` -- :class:`SweepResult`: per-scene errors, summaries, sampling errors;
+* :mod:`ccjax.experiments.protocols` -- the thesis tables behind ``ccjax reproduce`` (each condition
+  a synthetic source of the same engine);
 * :mod:`ccjax.experiments.reports` -- the tidy-rows :class:`Report` (text, CSV, JSON);
 * :mod:`ccjax.experiments.plots` -- error versus number of surfaces, world chromaticities;
 * :mod:`ccjax.experiments.cameras` -- camera list, SFU-321 camera check, sharpness study.

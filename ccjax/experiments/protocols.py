@@ -10,23 +10,19 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import equinox as eqx
 import jax
 import numpy as np
-from tqdm.auto import tqdm
 
-from ccjax import scenes
 from ccjax.experiments.reports import Column, Report
 from ccjax.experiments.sweeps import (
-    BRIGHTNESS_STATISTICS,
     RGB_VALUED,
     STATISTICS,
     SweepResult,
     is_registered,
     resolve_methods,
-    scene_errors,
 )
-from ccjax.runs import store
+from ccjax.runs.synthetic import SyntheticSource, run_synthetic
+from ccjax.scenes import Fluorescent, Metallic, SceneOptions, Specular
 from ccjax.world import World
 
 
@@ -37,17 +33,13 @@ class Condition:
     Attributes:
         n_surfaces: surfaces per scene.
         columns: table column -> per-scene statistic (one of :data:`STATISTICS`).
-        specular, noise, clip: scene options (clip on ccjax's unit scale).
-        scene_options: further scene options passed to the sweep by name (metallic highlights,
-            fluorescent surfaces), as ``(name, value)`` pairs so the condition stays hashable.
+        options: the :class:`~ccjax.scenes.SceneOptions` (specularities, noise, clip on ccjax's
+            unit scale, metallic highlights, fluorescent surfaces).
     """
 
     n_surfaces: int
     columns: dict
-    specular: object = None
-    noise: object = None
-    clip: float | None = None
-    scene_options: tuple = ()
+    options: SceneOptions = field(default_factory=SceneOptions)
 
 
 BASIC_COLUMNS = {name: name for name in STATISTICS}
@@ -61,13 +53,12 @@ def _chapter8_conditions(statistic: str, name: str) -> list[Condition]:
     """Tables 8.2 / 8.3's five conditions (§8.3), one statistic each (columns ``name@...``):
     matte; dielectric specularities ("spec"); the same clipped at 300; metallic specularities
     ("metal": 25 %, ``U(0, 4)`` x a metal spectrum drawn from every metal, A11); the same clipped."""
-    metallic = (("metallic", True),)
     return [
         Condition(8, {f"{name}@matte": statistic}),
-        Condition(8, {f"{name}@spec": statistic}, specular=True),
-        Condition(8, {f"{name}@spec+clip": statistic}, specular=True, clip=CLIP_300),
-        Condition(8, {f"{name}@metal": statistic}, scene_options=metallic),
-        Condition(8, {f"{name}@metal+clip": statistic}, clip=CLIP_300, scene_options=metallic),
+        Condition(8, {f"{name}@spec": statistic}, SceneOptions(specular=Specular())),
+        Condition(8, {f"{name}@spec+clip": statistic}, SceneOptions(specular=Specular(), clip=CLIP_300)),
+        Condition(8, {f"{name}@metal": statistic}, SceneOptions(metallic=Metallic())),
+        Condition(8, {f"{name}@metal+clip": statistic}, SceneOptions(clip=CLIP_300, metallic=Metallic())),
     ]
 
 
@@ -75,10 +66,14 @@ PROTOCOLS: dict[str, list[Condition]] = {
     # Table 4.2: 8 matte surfaces (§4.7).
     "4.2": [Condition(8, BASIC_COLUMNS)],
     # Table 4.3: 8 surfaces, 25 % specular + U(0, 2) x white.
-    "4.3": [Condition(8, BASIC_COLUMNS, specular=True)],
+    "4.3": [Condition(8, BASIC_COLUMNS, SceneOptions(specular=Specular()))],
     # Table 4.4: specular scenes, surfaces with any channel above 400/300/250 (thesis units) discarded.
     "4.4": [
-        Condition(8, {f"angular@{level}": "angular", f"rg@{level}": "rg"}, specular=True, clip=level / 255.0)
+        Condition(
+            8,
+            {f"angular@{level}": "angular", f"rg@{level}": "rg"},
+            SceneOptions(specular=Specular(), clip=level / 255.0),
+        )
         for level in (400, 300, 250)
     ],
     # Table 6.1 (§6.3): matte scenes of 4, 8 and 16 surfaces, rg only.
@@ -89,7 +84,7 @@ PROTOCOLS: dict[str, list[Condition]] = {
         for n in (4, 8)
         for condition in (
             Condition(n, {f"rg@{n}": "rg"}),
-            Condition(n, {f"rg@{n}+FL": "rg"}, scene_options=(("fluorescent", True),)),
+            Condition(n, {f"rg@{n}+FL": "rg"}, SceneOptions(fluorescent=Fluorescent())),
         )
     ],
     # Tables 8.2 and 8.3 (§8.3): 8 surfaces under five conditions; the first three are exactly
@@ -99,8 +94,8 @@ PROTOCOLS: dict[str, list[Condition]] = {
     # Table 10.1 (§10.3): 8 surfaces, matte, fluorescent (p = 0.15 per surface, A17) and specular worlds (rg only).
     "10.1": [
         Condition(8, {"rg@matte": "rg"}),
-        Condition(8, {"rg@fluorescent": "rg"}, scene_options=(("fluorescent", scenes.Fluorescent(probability=0.15)),)),
-        Condition(8, {"rg@specular": "rg"}, specular=True),
+        Condition(8, {"rg@fluorescent": "rg"}, SceneOptions(fluorescent=Fluorescent(probability=0.15))),
+        Condition(8, {"rg@specular": "rg"}, SceneOptions(specular=Specular())),
     ],
     # Table 10.2 (§10.3): 8 matte surfaces.
     "10.2": [Condition(8, {"rg": "rg"})],
@@ -192,10 +187,9 @@ class Reproduction:
         return lines
 
 
-_scene_errors = eqx.filter_jit(scene_errors)
-# Chunks of this many scenes: every chunk has the same shape, so each model compiles once per
-# number of surfaces for all the conditions of a table.
-_CHUNK = 1000
+CHUNK = 1000
+"""Scenes per chunk of a table's conditions (every chunk has the same shape, so each model
+compiles once per number of surfaces for all the conditions of a table)."""
 
 
 def run_conditions(
@@ -213,8 +207,11 @@ def run_conditions(
     its number of surfaces), so conditions differing only in specularities, metals, fluorescent
     surfaces or clipping see the same lights and surfaces, as the thesis' chapter-8 runs did
     (Table 8.2's columns 1-3 are Tables 4.2-4.4's scenes), and equal ``ccjax compare``'s
-    scenes for the same key. The scenes are drawn in one compiled function and every model
-    evaluated in its own, so a model compiles once for all conditions with the same shape.
+    scenes for the same key. Each condition is one synthetic source of the engine
+    (:func:`ccjax.runs.synthetic.run_synthetic`), unpadded (one count each), in chunks of
+    :data:`CHUNK` scenes; fluorescent surfaces are rendered through their characterisation, as
+    the thesis rendered its synthetic fluorescent scenes (§7.3; its error against the physical
+    model is printed with Table 7.2).
 
     Arguments:
         world: the world.
@@ -229,56 +226,20 @@ def run_conditions(
     Returns:
         One :class:`~ccjax.experiments.sweeps.SweepResult` per condition (one surface count each).
     """
-    tables: dict = {}
+    sources = [
+        SyntheticSource(key, (condition.n_surfaces,), n_scenes, condition.options, metals=metals)
+        for condition in conditions
+    ]
+    run = run_synthetic(
+        world, [model for _, model in fitted], sources, chunk_size=CHUNK, progress=progress, desc="reproduce"
+    )
     results = []
-    bar = tqdm(total=len(conditions) * len(fitted), desc="reproduce", disable=not progress, leave=False)
-    for condition in conditions:
-        options = dict(condition.scene_options)
-        specular, noise = scenes.resolve_options(condition.specular, condition.noise, condition.clip)
-        metallic, fluorescent = scenes.resolve_materials(
-            options.pop("metallic", None), options.pop("fluorescent", None)
-        )
-        if options:
-            raise ValueError(f"condition: unknown scene options {sorted(options)}")
-        need = (metallic is not None, fluorescent is not None)
-        if need not in tables:
-            # Test scenes: the six metals (A11) and the fluorescent surfaces as the thesis rendered
-            # its synthetic fluorescent scenes (§7.3): through their characterisation, the same
-            # model the FL algorithms are built from (its error against the physical model is
-            # printed with Table 7.2).
-            from ccjax.estimators.gamut.extensions import characterised_fluorescents
-
-            tables[need] = scenes.SceneTables.from_world(
-                world,
-                metals=(True if metals is None else metals) if need[0] else None,
-                fluorescent=characterised_fluorescents(world) if need[1] else None,
-            )
+    for condition, errors in zip(conditions, run.errors, strict=True):
         n = condition.n_surfaces
-        size = min(_CHUNK, n_scenes)
-        chunks = [
-            scenes.sample_batch(
-                scenes.sweep_keys(key, n, start, size),
-                tables[need],
-                n,
-                specular,
-                noise,
-                condition.clip,
-                metallic,
-                fluorescent,
-            )
-            for start in range(0, n_scenes, size)
-        ]
         result = SweepResult(methods=[label for label, _ in fitted], surfaces=[n], n_scenes=n_scenes)
-        for label, model in fitted:
-            parts = [jax.device_get(_scene_errors(model, chunk, tables[need].canonical_white)) for chunk in chunks]
-            result.errors.setdefault(label, {})[n] = {
-                name: np.concatenate([part[name] for part in parts])[:n_scenes]
-                for name in parts[0]
-                if model.estimates_brightness or name not in BRIGHTNESS_STATISTICS
-            }
-            bar.update()
+        for position, (label, _) in enumerate(fitted):
+            result.errors.setdefault(label, {})[n] = errors[n][position]
         results.append(result)
-    bar.close()
     return results
 
 
@@ -357,8 +318,7 @@ def reproduce(
     unknown = [m for m in methods if m not in targets]
     if unknown:
         raise ValueError(f"methods: {unknown} are not rows of Table {table}")
-    # Fit once for all conditions (through the store).
-    fitted = resolve_methods(world, [(method, store.fit(method, world)) for method in methods])
+    fitted = resolve_methods(world, methods)  # through the store's cache of fits
     key = jax.random.key(0) if key is None else key
     rows = []
     for condition, result in zip(

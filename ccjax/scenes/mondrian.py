@@ -19,24 +19,23 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
+from ccjax.scenes.options import (
+    Fluorescent,
+    Metallic,
+    ShotNoise,
+    Specular,
+    require_count,
+    resolve_materials,
+    resolve_options,
+)
 from ccjax.scenes.surfaces import (
     FLUORESCENT_STREAM,
     METAL_STREAM,
-    Fluorescent,
-    Metallic,
-    RadianceModel,
     SceneKeys,
-    SceneTables,
-    ShotNoise,
-    Specular,
-    default_fluorescent,
     draw_without_replacement,
-    require_count,
-    require_tables,
-    resolve_materials,
-    resolve_options,
     scene_keys,
 )
+from ccjax.scenes.tables import RadianceModel, SceneTables, default_fluorescent, require_tables
 from ccjax.world import World
 
 

@@ -1,19 +1,20 @@
 """Synthetic scenes: surface lists drawn from a world (Barnard 1999 §4.7).
 
 A scene is ``P`` surfaces drawn without replacement from the world's reflectances under one
-illuminant drawn from the **test** set; each surface gives one RGB. Options reproduce the thesis'
-experiments: specularities (each surface specular with probability 0.25, adding ``U(0, 2)`` times a
-perfect white, §4.7 and ch. 8), metallic highlights (:class:`Metallic`: probability 0.25, adding
-``U(0, 4)`` times a metal's reflectance, §8.3), fluorescent surfaces (:class:`Fluorescent`:
-each surface slot replaced by one of the fluorescent surfaces with probability 0.3, §7.3, A21),
+illuminant drawn from the **test** set; each surface gives one RGB. The rendering options
+(:mod:`ccjax.scenes.options`, all held by one :class:`SceneOptions`) reproduce the thesis'
+experiments: specularities (each surface specular with probability 0.25, adding ``U(0, 2)`` times
+a perfect white, §4.7 and ch. 8), metallic highlights (:class:`Metallic`: probability 0.25, adding
+``U(0, 4)`` times a metal's reflectance, §8.3), fluorescent surfaces (:class:`Fluorescent`: each
+surface slot replaced by one of the fluorescent surfaces with probability 0.3, §7.3, A21),
 clipping (pixels with any channel above the level are discarded, i.e. masked out) and shot noise
 (the chapter 3 noise model, variance ``a * rho + b``).
 
-Metal and fluorescent colours come from :class:`SceneTables` built with
-``SceneTables.from_world(world, metals=..., fluorescent=...)``; the options only say how often
+Metal and fluorescent colours come from :class:`SceneTables` (:mod:`ccjax.scenes.tables`), built
+with ``SceneTables.from_world(world, metals=..., fluorescent=...)``; the options only say how often
 and how strongly they occur, so they stay static (hashable) arguments of the jitted samplers.
-Their random draws come from keys folded off the scene key, so with the options off every scene
-is exactly what it was before they existed.
+Their random draws come from keys folded off the scene key, so turning a material option on
+leaves the light, the surfaces and the other options' draws of every scene as they are.
 
 Everything after the per-world tables is a pure function of a PRNG key, so scenes are reproducible
 and batches are generated with ``jax.vmap`` over per-scene keys: a sweep gives the same scenes
@@ -22,25 +23,29 @@ whatever its chunking or sharding.
 
 from __future__ import annotations
 
-import math
 import operator
-from dataclasses import dataclass
 from functools import partial
-from typing import Protocol, SupportsIndex, runtime_checkable
+from typing import SupportsIndex
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, UInt32
 
-from ccjax.materials.metals import METAL_MAX_AMOUNT, METAL_PROBABILITY, scene_metal_spectra
+from ccjax.scenes.options import (
+    Fluorescent,
+    Metallic,
+    SceneOptions,
+    ShotNoise,
+    Specular,
+    require_count,
+)
+from ccjax.scenes.tables import RadianceModel, SceneTables, default_fluorescent, require_tables
 from ccjax.world import World
 
 SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
 """A batch of ``B`` PRNG keys, one per scene (typed keys or raw ``uint32`` pairs)."""
 
-# Floyd's algorithm costs O(P^2) per scene, Gumbel top-k O(S log P); switch where they cross.
 _FLOYD_MAX_SURFACES = 64
 # Streams folded off a scene key for the material options (never split from it: a split's
 # outputs depend on how many keys are asked for, so adding one would move every existing draw).
@@ -63,187 +68,6 @@ class Scenes(eqx.Module):
     mask: Bool[Array, "*batch P"]
     illuminant: Float[Array, "*batch 3"]
     canonical_rgb: Float[Array, "*batch P 3"]
-
-
-@dataclass(frozen=True)
-class Specular:
-    """Dielectric specularities (Barnard 1999 §4.7, ch. 8): each surface is specular with
-    ``probability`` and then gains ``U(0, max_amount)`` times a perfect white reflectance.
-
-    Attributes:
-        probability: chance, in ``[0, 1]``, that a surface is specular (thesis: 0.25).
-        max_amount: upper end of the uniform highlight strength, in units of a perfect white
-            reflectance (thesis: 2, so a highlight adds up to twice a white's RGB); ``>= 0``.
-    """
-
-    probability: float = 0.25
-    max_amount: float = 2.0
-
-    def __post_init__(self):
-        _require_real(self.probability, "Specular.probability", "a probability in [0, 1]", lambda v: 0 <= v <= 1)
-        _require_real(self.max_amount, "Specular.max_amount", "a finite number >= 0", lambda v: v >= 0)
-
-
-@dataclass(frozen=True)
-class ShotNoise:
-    """Chapter 3 noise model on the unit scale: ``rho + sqrt(a * rho + b) * N(0, 1)``, clamped at
-    zero (a sensor cannot report a negative count). Defaults: ``a = 2e-6``, ``b = (0.05/255)^2``.
-
-    Attributes:
-        a: signal-dependent (shot) variance per unit of response, so the variance grows linearly
-            with ``rho``; on the unit scale (``rho = 1`` is 255 in thesis units); ``>= 0``.
-        b: signal-independent variance (the noise floor at ``rho = 0``), on the unit scale (the
-            default is a standard deviation of 0.05 in thesis units, white = 255); ``>= 0``.
-    """
-
-    a: float = 2e-6
-    b: float = (0.05 / 255.0) ** 2
-
-    def __post_init__(self):
-        _require_real(self.a, "ShotNoise.a", "a finite number >= 0", lambda v: v >= 0)
-        _require_real(self.b, "ShotNoise.b", "a finite number >= 0", lambda v: v >= 0)
-
-
-@dataclass(frozen=True)
-class Metallic:
-    """Metallic highlights (Barnard 1999 §8.3; spec ch08-12 A11): each surface gets one with
-    ``probability``, adding ``U(0, max_amount)`` times a metal spectrum drawn uniformly from the
-    tables' metals. By default the spectra are the metals' own reflectances (at most 1), so a
-    highlight is at most ``max_amount`` times as bright as a perfect white in every channel: the
-    thesis' "up to a factor of four times as bright as a perfect white" (see
-    :func:`ccjax.materials.scene_metal_spectra`)."""
-
-    probability: float = METAL_PROBABILITY
-    max_amount: float = METAL_MAX_AMOUNT
-
-    def __post_init__(self):
-        _require_real(self.probability, "Metallic.probability", "a probability in [0, 1]", lambda v: 0 <= v <= 1)
-        _require_real(self.max_amount, "Metallic.max_amount", "a finite number >= 0", lambda v: v >= 0)
-
-
-@dataclass(frozen=True)
-class Fluorescent:
-    """Fluorescent surfaces (Barnard 1999 §7.3, "30 % of the randomly selected surfaces"; A21):
-    each surface slot independently becomes, with ``probability``, one of the tables' fluorescent
-    surfaces chosen uniformly (a surface may then occur twice in a scene: there are only nine)."""
-
-    probability: float = 0.3
-
-    def __post_init__(self):
-        _require_real(self.probability, "Fluorescent.probability", "a probability in [0, 1]", lambda v: 0 <= v <= 1)
-
-
-@runtime_checkable
-class RadianceModel(Protocol):
-    """Anything that gives the light leaving its surfaces under given lights, ``(..., 101) ->
-    (..., F, 101)``: :class:`ccjax.materials.FluorescentSurfaces` (the physical model) or
-    :class:`ccjax.materials.Characterisation` (the thesis' NNLS characterisation of them)."""
-
-    def radiance(self, illuminants: Float[ArrayLike, "*lights 101"]) -> Float[ArrayLike, "*lights F 101"]: ...
-
-
-def _require_real(value, name: str, expected: str, accept) -> None:
-    """Raise a ``ValueError`` naming ``name`` unless ``value`` is a finite real number that ``accept``s."""
-    if isinstance(value, bool) or (not isinstance(value, (int, float)) and not hasattr(value, "__float__")):
-        raise ValueError(f"{name}: expected {expected}, got {value!r}")
-    number = float(value)
-    if not math.isfinite(number) or not accept(number):
-        raise ValueError(f"{name}: expected {expected}, got {value!r}")
-
-
-def require_count(value, name: str, low: int, high: int | None = None) -> int:
-    """``value`` as a Python ``int`` (any integer-like value, e.g. ``np.int64``, via
-    ``operator.index``); a ``ValueError`` naming ``name`` when it is not an integer in range."""
-    span = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
-    if isinstance(value, bool):
-        raise ValueError(f"{name}: expected {span}, got the boolean {value!r}")
-    try:
-        number = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name}: expected {span}, got {value!r} of type {type(value).__name__}") from None
-    if number < low or (high is not None and number > high):
-        raise ValueError(f"{name}: expected {span}, got {number}")
-    return number
-
-
-class SceneTables(eqx.Module):
-    """Per-world response tables from which scenes are gathered (computed once per world).
-
-    The metal and fluorescent tables are ``None`` unless :meth:`from_world` was asked for them.
-    """
-
-    surface_rgb: Float[Array, "J S 3"]  # every reflectance under every test illuminant
-    whites: Float[Array, "J 3"]
-    canonical_rgb: Float[Array, "S 3"]
-    canonical_white: Float[Array, " 3"]
-    metal_rgb: Float[Array, "J M 3"] | None = None  # every metal spectrum under every test illuminant
-    canonical_metal_rgb: Float[Array, "M 3"] | None = None
-    fluorescent_rgb: Float[Array, "J F 3"] | None = None  # every fluorescent surface under every test illuminant
-    canonical_fluorescent_rgb: Float[Array, "F 3"] | None = None
-
-    @classmethod
-    def from_world(
-        cls,
-        world: World,
-        *,
-        metals: Float[ArrayLike, "M 101"] | bool | None = None,
-        fluorescent: RadianceModel | None = None,
-    ) -> SceneTables:
-        """Tables of ``world`` under its test illuminants (and its canonical light).
-
-        Arguments:
-            world: the world.
-            metals: metal specular spectra ``(M, 101)`` for :class:`Metallic` highlights, or
-                ``True`` for the reflectances of all six metals
-                (:func:`ccjax.materials.scene_metal_spectra`; A11: grey metals included), or ``None``.
-            fluorescent: a :class:`RadianceModel` for :class:`Fluorescent` surfaces (e.g.
-                ``ccjax.materials.synthetic_fluorescent_surfaces()`` or its
-                ``characterise(...)``), or ``None``.
-
-        Returns:
-            :class:`SceneTables`.
-        """
-        sensors = world.camera.sensors
-        lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
-        surface_rgb = jnp.einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
-        metal_rgb = canonical_metal_rgb = fluorescent_rgb = canonical_fluorescent_rgb = None
-        if metals is not None and metals is not False:
-            spectra = _metal_table(metals, sensors.dtype)
-            metal_rgb = jnp.einsum("ml,jlc->jmc", spectra, lit_sensors)
-            canonical_metal_rgb = (spectra * world.canonical) @ sensors
-        if fluorescent is not None:
-            if not isinstance(fluorescent, RadianceModel):
-                raise ValueError(
-                    "fluorescent: expected a model with a radiance(illuminants) method, "
-                    f"got {type(fluorescent).__name__}"
-                )
-            lights = jnp.concatenate([world.test_illuminants, world.canonical[None]])
-            signals = jnp.asarray(fluorescent.radiance(lights), dtype=sensors.dtype)  # (J + 1, F, 101)
-            if signals.ndim != 3 or signals.shape[0] != lights.shape[0] or signals.shape[-1] != lights.shape[-1]:
-                raise ValueError(f"fluorescent: radiance of {lights.shape} lights has shape {signals.shape}")
-            if not bool(jnp.all(jnp.isfinite(signals))) or bool(jnp.any(signals < 0)):
-                raise ValueError("fluorescent: radiance contains negative or non-finite values")
-            responses = signals @ sensors
-            fluorescent_rgb, canonical_fluorescent_rgb = responses[:-1], responses[-1]
-        return cls(
-            surface_rgb=surface_rgb,
-            whites=world.test_whites,
-            canonical_rgb=world.canonical_rgb,
-            canonical_white=world.canonical_white,
-            metal_rgb=metal_rgb,
-            canonical_metal_rgb=canonical_metal_rgb,
-            fluorescent_rgb=fluorescent_rgb,
-            canonical_fluorescent_rgb=canonical_fluorescent_rgb,
-        )
-
-
-def _metal_table(metals, dtype) -> Float[Array, "M 101"]:
-    spectra = scene_metal_spectra() if metals is True else np.asarray(metals, dtype=np.float64)
-    if spectra.ndim != 2 or spectra.shape[0] < 1 or spectra.shape[1] != 101:
-        raise ValueError(f"metals: expected True or spectra of shape (M, 101) with M >= 1, got {spectra.shape}")
-    if not np.all(np.isfinite(spectra)) or np.any(spectra < 0):
-        raise ValueError("metals: spectra contain negative or non-finite values")
-    return jnp.asarray(spectra, dtype=dtype)
 
 
 def draw_without_replacement(
@@ -416,19 +240,6 @@ def sample_one(
     return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
 
 
-def require_tables(tables: SceneTables, metallic: Metallic | None, fluorescent: Fluorescent | None) -> None:
-    """A ``ValueError`` naming the option when ``tables`` lack the colours it needs."""
-    if metallic is not None and tables.metal_rgb is None:
-        raise ValueError(
-            "metallic: the scene tables have no metals; build them with SceneTables.from_world(world, metals=True)"
-        )
-    if fluorescent is not None and tables.fluorescent_rgb is None:
-        raise ValueError(
-            "fluorescent: the scene tables have no fluorescent surfaces; build them with "
-            "SceneTables.from_world(world, fluorescent=model)"
-        )
-
-
 @partial(jax.jit, static_argnames=("n_surfaces", "specular", "noise", "clip", "metallic", "fluorescent"))
 def sample_batch(
     keys: SceneKeys,
@@ -532,51 +343,13 @@ def sample(
     n_reflectances = int(world.reflectances.shape[0])
     n_scenes = require_count(n_scenes, "n_scenes", 1)
     n_surfaces = require_count(n_surfaces, "n_surfaces", 1, n_reflectances)
-    specular, noise = resolve_options(specular, noise, clip)
-    metallic, fluorescent = resolve_materials(metallic, fluorescent)
+    options = SceneOptions.resolve(specular, noise, clip, metallic, fluorescent)
     tables = SceneTables.from_world(
         world,
-        metals=(True if metals is None else metals) if metallic is not None else None,
-        fluorescent=default_fluorescent(fluorescent_surfaces) if fluorescent is not None else None,
+        metals=(True if metals is None else metals) if options.metallic is not None else None,
+        fluorescent=default_fluorescent(fluorescent_surfaces) if options.fluorescent is not None else None,
     )
     keys = scene_keys(key, 0, n_scenes)
-    return sample_batch(keys, tables, n_surfaces, specular, noise, clip, metallic, fluorescent)
-
-
-def default_fluorescent(model: RadianceModel | None) -> RadianceModel:
-    """``model``, or the default fluorescent surfaces (the nine synthetic ones' physical model)."""
-    if model is not None:
-        return model
-    from ccjax.materials.fluorescence import synthetic_fluorescent_surfaces
-
-    return synthetic_fluorescent_surfaces()
-
-
-def resolve_materials(metallic, fluorescent) -> tuple[Metallic | None, Fluorescent | None]:
-    """Validate and normalise the material options (``True`` -> the thesis recipe)."""
-    metallic = Metallic() if metallic is True else (metallic or None)
-    fluorescent = Fluorescent() if fluorescent is True else (fluorescent or None)
-    if metallic is not None and not isinstance(metallic, Metallic):
-        raise ValueError(f"metallic: expected True, None or a Metallic, got {metallic!r}")
-    if fluorescent is not None and not isinstance(fluorescent, Fluorescent):
-        raise ValueError(f"fluorescent: expected True, None or a Fluorescent, got {fluorescent!r}")
-    return metallic, fluorescent
-
-
-def resolve_options(specular, noise, clip) -> tuple[Specular | None, ShotNoise | None]:
-    """Validate and normalise the scene options (``True`` -> the default recipe)."""
-    specular = Specular() if specular is True else (specular or None)
-    noise = ShotNoise() if noise is True else (noise or None)
-    if specular is not None:
-        if not isinstance(specular, Specular):
-            raise ValueError(f"specular: expected True, None or a Specular, got {specular!r}")
-        if not 0 <= specular.probability <= 1 or specular.max_amount < 0:
-            raise ValueError(f"specular: probability must be in [0, 1] and max_amount >= 0, got {specular}")
-    if noise is not None:
-        if not isinstance(noise, ShotNoise):
-            raise ValueError(f"noise: expected True, None or a ShotNoise, got {noise!r}")
-        if noise.a < 0 or noise.b < 0:
-            raise ValueError(f"noise: a and b must be non-negative, got {noise}")
-    if clip is not None and not (isinstance(clip, (int, float)) and clip > 0):
-        raise ValueError(f"clip: expected a positive level on the unit scale, got {clip!r}")
-    return specular, noise
+    return sample_batch(
+        keys, tables, n_surfaces, options.specular, options.noise, clip, options.metallic, options.fluorescent
+    )

@@ -1,0 +1,279 @@
+"""The engine: fitted models run on streams of equal-shaped chunks of items, per-item errors out.
+
+A run is a list of :class:`Stream` s, each a number of items cut into chunks of one shape (so a
+program compiles once per shape, and memory stays bounded whatever the number of items). Every
+chunk is placed on the devices by a :class:`Placement` (one device, or the item axis sharded over
+a ``jax.sharding.Mesh``), every model's :func:`scene_errors` program runs on it, and the per-item
+errors and statuses come back to the host, trimmed to the stream's items and to the statistics
+that apply to the model (:func:`applicable`). Programs are traced and compiled on two worker
+threads ahead of the chunks that need them (:func:`run_streams`).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+from tqdm.auto import tqdm
+
+from ccjax import metrics
+from ccjax.estimators.base import AbstractEstimator, estimate_batch
+from ccjax.scenes import Scenes
+
+STATISTICS = ("angular", "rg", "rgb", "brightness", "map_rg", "map_rgb")
+"""Per-scene error measures (Barnard 1999 §4.2): angle (degrees), (r,g) distance, RGB distance,
+signed R+G+B difference, scene mapping RMS (r,g) and RGB errors; RGB-valued ones on the unit scale."""
+
+BRIGHTNESS_STATISTICS = ("rgb", "brightness", "map_rgb")
+"""Statistics that apply only to methods estimating the light's brightness (3-D methods)."""
+
+SURFACES_PER_CHUNK = 1 << 22
+"""Default chunk: about this many surface slots (scenes x padded size), which keeps a chunk's
+arrays near 100 MB; see :func:`chunking`."""
+
+
+def scene_errors(model: AbstractEstimator, scenes: Scenes, canonical_white: Float[Array, " 3"]) -> dict[str, jax.Array]:
+    """Per-scene errors of one model on a scene batch (Barnard 1999 §4.2), plus ``ok`` and ``status``.
+
+    Arguments:
+        model: a surface estimator.
+        scenes: a :class:`ccjax.scenes.Scenes` batch.
+        canonical_white: the canonical light's camera RGB.
+
+    Returns:
+        :data:`STATISTICS` names -> ``(B,)`` errors, ``"ok"`` and ``"status"`` (the
+        :class:`~ccjax.estimators.base.Status` codes).
+    """
+    estimate = estimate_batch(model, scenes.rgb, scenes.mask)
+    e, truth = estimate.illuminant, scenes.illuminant
+    map_rg, map_rgb = metrics.mapping_errors(e, scenes.rgb, scenes.mask, scenes.canonical_rgb, canonical_white)
+    return {
+        "angular": metrics.angular_error(e, truth),
+        "rg": metrics.rg_error(e, truth),
+        "rgb": metrics.rgb_error(e, truth),
+        "brightness": metrics.brightness_error(e, truth),
+        "map_rg": map_rg,
+        "map_rgb": map_rgb,
+        "ok": estimate.ok,
+        "status": estimate.status,
+    }
+
+
+def applicable(model: AbstractEstimator, errors: dict) -> dict:
+    """``errors`` without the statistics that do not apply to ``model``: the RGB-valued ones
+    (:data:`BRIGHTNESS_STATISTICS`) unless it estimates the light's brightness.
+
+    Arguments:
+        model: the estimator the errors are of.
+        errors: statistic name -> values (as :func:`scene_errors` returns them).
+
+    Returns:
+        A new dict, in the order of ``errors``.
+    """
+    return {
+        name: value for name, value in errors.items() if model.estimates_brightness or name not in BRIGHTNESS_STATISTICS
+    }
+
+
+_errors_program = eqx.filter_jit(scene_errors)
+
+
+class Placement:
+    """Where the item axis of a chunk lives: the default device, or sharded over the one axis of a
+    ``jax.sharding.Mesh`` (several devices; under ``jax.distributed`` several processes).
+
+    The engine puts every chunk's inputs through :meth:`place` and brings every result back
+    through :meth:`fetch`, the two points where items cross between host and devices (where a
+    run over several processes exchanges its shares).
+
+    Arguments:
+        mesh: optional ``jax.sharding.Mesh`` with one axis (a ValueError otherwise).
+
+    Attributes:
+        sharding: the ``NamedSharding`` of the item axis, or ``None`` on one device.
+        n_devices: devices the item axis is split over (chunks are a multiple of it).
+    """
+
+    def __init__(self, mesh: jax.sharding.Mesh | None = None):
+        self.sharding = None
+        self.n_devices = 1
+        if mesh is not None:
+            if len(mesh.axis_names) != 1:
+                raise ValueError(f"mesh: expected one axis, got {mesh.axis_names}")
+            self.sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(mesh.axis_names[0]))
+            self.n_devices = int(mesh.devices.size)
+
+    def place(self, items):
+        """``items`` (leading axis: the items) on the devices.
+
+        Arguments:
+            items: an array or PyTree of arrays.
+
+        Returns:
+            The same, sharded along the item axis when there is a mesh.
+        """
+        return items if self.sharding is None else jax.device_put(items, self.sharding)
+
+    def fetch(self, tree):
+        """A PyTree of device arrays as NumPy arrays on the host.
+
+        Arguments:
+            tree: results of a chunk.
+
+        Returns:
+            The same tree of NumPy arrays.
+        """
+        return jax.device_get(tree)
+
+
+def chunking(n_items: int, item_size: int, requested: int | None = None, n_devices: int = 1) -> tuple[int, int]:
+    """Items per chunk and number of chunks for ``n_items`` items of ``item_size`` slots each.
+
+    Arguments:
+        n_items: items in the stream.
+        item_size: slots per item (a scene's padded number of surfaces).
+        requested: items per chunk (default: about :data:`SURFACES_PER_CHUNK` slots, between 64
+            and 16,384 items).
+        n_devices: the chunk is rounded up to a multiple of it (an equal share per device).
+
+    Returns:
+        ``(size, n_chunks)``: every chunk has ``size`` items (the last one is filled with items
+        beyond the stream's end and trimmed).
+    """
+    size = requested or max(64, min(16384, SURFACES_PER_CHUNK // max(item_size, 1)))
+    size = min(size, n_items)
+    size = int(math.ceil(size / n_devices) * n_devices)
+    return size, int(math.ceil(n_items / size))
+
+
+@dataclass(frozen=True, eq=False)
+class Stream:
+    """Items of one kind cut into equal chunks, and the models to run on them.
+
+    Attributes:
+        n_items: items in the stream (results are trimmed to them).
+        size: items per chunk.
+        make: chunk index -> the chunk's batch (a :class:`~ccjax.scenes.Scenes` of ``size`` items),
+            placed on the devices.
+        maker: a key of the program ``make`` runs: streams with equal keys share it (it is
+            compiled once, ahead, by making the first chunk of the first of them).
+        shape: a key of the batch's shapes and dtypes: streams with equal keys share the
+            models' errors programs.
+        positions: indices of the models to run.
+        canonical_white: the canonical light's camera RGB (mapping errors).
+    """
+
+    n_items: int
+    size: int
+    make: Callable[[int], Scenes]
+    maker: Hashable
+    shape: Hashable
+    positions: tuple[int, ...]
+    canonical_white: Float[Array, " 3"]
+
+    @property
+    def n_chunks(self) -> int:
+        """Chunks in the stream."""
+        return -(-self.n_items // self.size)
+
+
+def run_streams(
+    models: Sequence[AbstractEstimator],
+    streams: Sequence[Stream],
+    placement: Placement,
+    *,
+    progress: bool = True,
+    desc: str = "run",
+) -> list[dict[int, dict[str, np.ndarray]]]:
+    """Every stream's models on every chunk of the stream: per-item errors and statuses.
+
+    Two worker threads trace and compile, in the order they are first needed and each once, the
+    streams' makers and the models' errors programs (one per model and batch shape), while this
+    thread runs those already compiled (XLA compiles and runs without holding the GIL), so
+    compiling overlaps running. The workers see ``jax_enable_x64`` as the caller has it; other
+    per-thread JAX settings (a ``jax.default_device`` context) are not passed on: set those
+    globally. An error raised while compiling reaches the caller as itself.
+
+    Arguments:
+        models: fitted surface estimators.
+        streams: the streams, run in order.
+        placement: where the chunks live.
+        progress: show a progress bar (one step per chunk).
+        desc: the progress bar's label.
+
+    Returns:
+        Per stream: model position -> statistic -> ``(n_items,)`` NumPy array (the
+        :func:`applicable` :func:`scene_errors`).
+    """
+    x64 = bool(jax.config.read("jax_enable_x64"))
+    zeros: dict[Hashable, Scenes] = {}
+
+    def compile_maker(stream: Stream) -> None:
+        with jax.enable_x64(x64):  # the caller's setting (a context is per thread)
+            stream.make(0)
+
+    def compile_errors(position: int, stream: Stream):
+        # On one device from zeros of the batch's shapes, so that it does not wait for the
+        # maker to compile; sharded, from the first chunk (whose layout the maker decides).
+        with jax.enable_x64(x64):
+            if placement.sharding is None:
+                if stream.shape not in zeros:
+                    shapes = jax.eval_shape(lambda: stream.make(0))
+                    zeros[stream.shape] = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
+                batch = zeros[stream.shape]
+            else:
+                batch = stream.make(0)
+            return _errors_program.lower(models[position], batch, stream.canonical_white).compile()
+
+    results: list[dict[int, dict[str, np.ndarray]]] = []
+    bar = tqdm(
+        total=sum(s.n_chunks for s in streams if s.positions),
+        desc=desc,
+        unit="chunk",
+        disable=not progress,
+        leave=False,
+    )
+    compiler = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="ccjax-compile")
+    try:
+        makers: dict[Hashable, concurrent.futures.Future] = {}
+        programs: dict[tuple, concurrent.futures.Future] = {}
+        for stream in streams:
+            if not stream.positions:
+                continue
+            if stream.maker not in makers:
+                makers[stream.maker] = compiler.submit(compile_maker, stream)
+            for position in stream.positions:
+                if (position, stream.shape) not in programs:
+                    programs[position, stream.shape] = compiler.submit(compile_errors, position, stream)
+        for stream in streams:
+            collected: dict[int, list[dict]] = {position: [] for position in stream.positions}
+            if stream.positions:
+                makers[stream.maker].result()
+                for index in range(stream.n_chunks):
+                    batch = stream.make(index)
+                    for position in stream.positions:
+                        program = programs[position, stream.shape].result()
+                        collected[position].append(
+                            placement.fetch(program(models[position], batch, stream.canonical_white))
+                        )
+                    bar.update()
+            results.append(
+                {
+                    position: applicable(
+                        models[position],
+                        {name: np.concatenate([c[name] for c in chunks])[: stream.n_items] for name in chunks[0]},
+                    )
+                    for position, chunks in collected.items()
+                }
+            )
+    finally:
+        compiler.shutdown(wait=False, cancel_futures=True)
+        bar.close()
+    return results
