@@ -37,7 +37,15 @@ def input_rule(input_kind: str, preprocessing: str | Preprocessing) -> Preproces
 def resolve(model: AbstractEstimator, preprocessing: str | Preprocessing | None = None) -> Preprocessing:
     """The preprocessing ``model`` gets: ``preprocessing``, or the model's own default
     (``model.default_preprocessing``: ``pixels`` for the statistics methods, ``ave5`` for the
-    world-based ones) when it is None; image estimators always get ``pixels`` (:func:`input_rule`)."""
+    world-based ones) when it is None; image estimators always get ``pixels`` (:func:`input_rule`).
+
+    Arguments:
+        model: a fitted estimator.
+        preprocessing: a :class:`Preprocessing` or its name, or None.
+
+    Returns:
+        The :class:`Preprocessing`.
+    """
     return input_rule(model.input_kind, model.default_preprocessing if preprocessing is None else preprocessing)
 
 
@@ -103,7 +111,15 @@ def prepare(
 
 def input_key(model: AbstractEstimator, preprocessing: str | Preprocessing | None = None) -> str:
     """A key equal for models that :func:`prepare` gives the same input (with the same image,
-    dark rule and mask): the resolved method's name, so a caller prepares each input once."""
+    dark rule and mask): the resolved method's name, so a caller prepares each input once.
+
+    Arguments:
+        model: a fitted estimator.
+        preprocessing: as for :func:`prepare`.
+
+    Returns:
+        The key.
+    """
     return resolve(model, preprocessing).name
 
 
@@ -143,7 +159,14 @@ def model_input(
     *,
     dark: float = DEFAULT_DARK,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`prepare` (kept for callers of the earlier name)."""
+    """:func:`prepare` (kept for callers of the earlier name).
+
+    Arguments:
+        model, image, preprocessing, dark: as for :func:`prepare`.
+
+    Returns:
+        As :func:`prepare`.
+    """
     return prepare(model, image, preprocessing, dark=dark)
 
 
@@ -157,7 +180,16 @@ def _concrete(model: AbstractEstimator) -> Callable[[Array, Array], Estimate]:
 def run_model(model: AbstractEstimator, rgb: Array, mask: Array) -> Estimate:
     """Run ``model`` on what :func:`prepare` gave, jit-compiled once per model structure and
     input shape: an image ``(H, W, 3)`` goes through :func:`estimate_pixels` (so surface models
-    see every usable pixel), a surface list ``(N, 3)`` to the model directly."""
+    see every usable pixel), a surface list ``(N, 3)`` to the model directly.
+
+    Arguments:
+        model: a fitted estimator.
+        rgb: the prepared input, ``(H, W, 3)`` or ``(N, 3)``.
+        mask: its mask, ``(H, W)`` or ``(N,)``.
+
+    Returns:
+        The model's :class:`~ccjax.estimators.base.Estimate`.
+    """
     if rgb.ndim == 3:
         return estimate_pixels(model, rgb, mask)
     return _concrete(model)(rgb, mask)
@@ -188,7 +220,15 @@ def estimate_image(
 
 def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "3"]:
     """Mean RGB of the masked pixels (0 if none). Summed as a matrix-vector product over rows of
-    ``W * 3`` values: XLA's CPU reductions over a minor axis of 3 are several times slower."""
+    ``W * 3`` values: XLA's CPU reductions over a minor axis of 3 are several times slower.
+
+    Arguments:
+        rgb: ``(H, W, 3)`` image.
+        mask: ``(H, W)`` pixels to average.
+
+    Returns:
+        ``(3,)`` the mean.
+    """
     height, width, _ = rgb.shape
     rows = jnp.where(mask[..., None], rgb, 0.0).reshape(height, width * 3)
     total = (jnp.ones((height,), rgb.dtype) @ rows).reshape(width, 3).sum(axis=0)
@@ -201,6 +241,14 @@ def estimate_pixels(model: AbstractEstimator, rgb: Float[Array, "H W 3"], mask: 
     Image-only models get the image; models linear in the pixels (``model.pools_pixels``: grey
     world) get the masked mean as a single datum, which gives the same estimate with one fast
     reduction; others get the pixel list.
+
+    Arguments:
+        model: a fitted estimator.
+        rgb: ``(H, W, 3)`` image.
+        mask: ``(H, W)`` usable pixels.
+
+    Returns:
+        The model's :class:`~ccjax.estimators.base.Estimate`.
     """
     if model.input_kind == "image":
         return _concrete(model)(rgb, mask)

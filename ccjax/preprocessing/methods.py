@@ -27,6 +27,15 @@ class Preprocessing:
     tiles of the right and bottom edges (:func:`block_average`); ``ave<b>-u<spread>`` keeps only
     blocks whose (r,g) spread is at most ``<spread>`` (e.g. ``ave5-u0.04``). They combine in the
     order ``ave<b>[-edges][-u<spread>][-cluster|-hull]``, e.g. ``ave5-edges-hull``.
+
+    Attributes:
+        name: the name it was parsed from.
+        block: block side in pixels (1 for segmentation and ``pixels``).
+        segmentation: ``(min size, rg tolerance, relative R+G+B tolerance)``, or None.
+        reduction: None, ``"cluster"`` or ``"hull"``.
+        max_rg_spread: the largest (r,g) spread of a kept block, or None.
+        edges: keep the partial tiles of the right and bottom edges.
+        pixels: every usable pixel (``pixels``).
     """
 
     name: str
@@ -91,7 +100,14 @@ class Preprocessing:
 
 
 def as_preprocessing(preprocessing: str | Preprocessing) -> Preprocessing:
-    """``preprocessing`` as a :class:`Preprocessing` (names are parsed; ``ValueError`` if unknown)."""
+    """``preprocessing`` as a :class:`Preprocessing` (names are parsed; ``ValueError`` if unknown).
+
+    Arguments:
+        preprocessing: a name or a :class:`Preprocessing`.
+
+    Returns:
+        The :class:`Preprocessing`.
+    """
     return preprocessing if isinstance(preprocessing, Preprocessing) else Preprocessing.parse(preprocessing)
 
 
@@ -108,7 +124,14 @@ hull reduction") do not say which segmentations; any ``seg-...-hull`` name runs 
 
 def padded_size(count: int | np.integer) -> int:
     """The length surface lists of ``count`` rows are padded to: a power of two, at least 64, so
-    jit compiles once per size class, not once per image."""
+    jit compiles once per size class, not once per image.
+
+    Arguments:
+        count: the number of surfaces.
+
+    Returns:
+        The padded length.
+    """
     return max(64, 1 << int(np.ceil(np.log2(max(count, 1)))))
 
 

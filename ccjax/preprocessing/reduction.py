@@ -82,6 +82,10 @@ def cluster_rgb(rgb: np.ndarray, divisions: int = 100) -> np.ndarray:
     """RGB clustering (§4.6): bin in RGB (``divisions`` per channel over ``[0, max]``) and replace
     each occupied bin by the mean of its members (removes near-duplicates).
 
+    Arguments:
+        rgb: ``(n, 3)`` surfaces.
+        divisions: bins per channel.
+
     Returns:
         ``(m, 3)`` float32, one row per occupied bin.
     """
@@ -98,7 +102,14 @@ def cluster_rgb(rgb: np.ndarray, divisions: int = 100) -> np.ndarray:
 
 def hull_reduce(rgb: np.ndarray) -> np.ndarray:
     """Keep only the vertices of the RGB convex hull (§4.6), in their original order; degenerate
-    sets (fewer than 5 points, or flat) are kept whole."""
+    sets (fewer than 5 points, or flat) are kept whole.
+
+    Arguments:
+        rgb: ``(n, 3)`` surfaces.
+
+    Returns:
+        ``(m, 3)`` the hull's vertices (or ``rgb`` itself when degenerate).
+    """
     from scipy.spatial import ConvexHull, QhullError
 
     if len(rgb) < 5:
@@ -119,6 +130,13 @@ def segment(
     its R+G+B within ``brightness_tolerance``; regions smaller than ``min_size`` are dropped.
     Plain Python region growing: a few seconds per megapixel (a preprocessing option, not the
     default).
+
+    Arguments:
+        rgb: ``(H, W, 3)`` linear image.
+        usable: ``(H, W)`` from :func:`~ccjax.preprocessing.usable_pixels`.
+        min_size: the fewest pixels a region may have.
+        rg_tolerance: the largest diagonal of a region's (r,g) bounding box.
+        brightness_tolerance: the largest ``(max - min) / min`` of a region's R+G+B.
 
     Returns:
         ``(regions, 3)`` float32 region means, in seed order.
