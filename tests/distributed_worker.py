@@ -149,19 +149,15 @@ def image_part(models, folder, out) -> None:
 
     from ccjax.experiments.evaluation import run_images
     from ccjax.io import match_ground_truth, read_ground_truth
-    from ccjax.runs import hosts
 
     pairs = match_ground_truth(read_ground_truth(Path(folder) / "groundtruth.csv"), folder)
-    share = hosts.process_share(len(pairs))
-    mine = pairs[share]
+    # The library splits the files over the processes (each reads its share) and pools the results.
     result = run_images(
-        [p for p, _ in mine], {label: [m] for label, m in models.items()}, truth=np.array([t for _, t in mine])
+        [p for p, _ in pairs], {label: [m] for label, m in models.items()}, truth=np.array([t for _, t in pairs])
     )
-    local = {label: result.angular(label) for label in models}
-    local["index"] = np.arange(share.start, share.stop)
-    pooled = hosts.gather(local)
-    for name, values in pooled.items():
-        out[f"images/{name}"] = values
+    for label in models:
+        out[f"images/{label}"] = result.angular(label)
+    out["images/index"] = np.arange(len(pairs))
 
 
 def train_part(world, mesh, out) -> None:

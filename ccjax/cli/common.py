@@ -248,3 +248,29 @@ def write_outputs(args, report) -> None:
         write(args.json, report.to_json())
     if getattr(args, "csv", None):
         write(args.csv, report.to_csv())
+
+
+def start_processes() -> bool:
+    """Join a multi-process run when JAX's standard distributed environment says so
+    (:func:`ccjax.runs.hosts.initialize_from_environment`: ``JAX_COORDINATOR_ADDRESS``,
+    ``JAX_NUM_PROCESSES``, ``JAX_PROCESS_ID``, or a Slurm / Open MPI launch), before any JAX work.
+
+    Returns:
+        True when this process writes the outputs (process 0, or the only process).
+    """
+    import jax
+
+    from ccjax.runs import hosts
+
+    hosts.initialize_from_environment()
+    return jax.process_index() == 0
+
+
+def item_mesh_if_distributed():
+    """The item mesh over every process's devices when several processes run, else ``None``
+    (one process keeps its default device, as without the distributed environment)."""
+    import jax
+
+    from ccjax.runs import hosts
+
+    return hosts.item_mesh() if jax.process_count() > 1 else None

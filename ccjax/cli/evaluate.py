@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import check_output_file, label_list, world_arguments, write
+from ccjax.cli.common import check_output_file, label_list, start_processes, world_arguments, write
 from ccjax.cli.image_options import (
     as_option_error,
     check_labels,
@@ -113,6 +113,7 @@ def run_evaluate(args) -> int:
     from ccjax.runs.sources import raise_failures
 
     start = time.perf_counter()
+    writer = start_processes()
     check_folds(args)
     check_labels(args.methods + (args.train or []), args)
     for option, path in (("--json", args.json), ("--csv", args.csv)):
@@ -139,6 +140,8 @@ def run_evaluate(args) -> int:
         )
     except ValueError as error:
         raise as_option_error(error) from None
+    if not writer:  # under jax.distributed every process holds the pooled results; one reports them
+        return 0
     print(header(evaluation, args))
     if evaluation.check is not None:
         print(evaluation.check.message())

@@ -8,7 +8,9 @@ import time
 from ccjax.cli.common import (
     build_world,
     int_list,
+    item_mesh_if_distributed,
     label_list,
+    start_processes,
     world_arguments,
     write_outputs,
 )
@@ -93,6 +95,7 @@ def run_compare(args) -> int:
     from ccjax import _cache, experiments
 
     start = time.perf_counter()
+    writer = start_processes()
     # Compiled programs go to <cache>/xla, so a second run skips compilation (as its fits are read
     # from <cache>/fits by the sweep).
     _cache.enable_compilation_cache()
@@ -110,7 +113,10 @@ def run_compare(args) -> int:
         # Each cell's per-scene errors are cached under a key of everything they depend on
         # (ccjax's code included), so a repeated comparison reads what it has computed before.
         cache=not args.recompute,
+        mesh=item_mesh_if_distributed(),
     )
+    if not writer:  # under jax.distributed every process holds the pooled result; one reports it
+        return 0
     n_cells = len(result.methods) * len(result.surfaces)
     print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes")
     print(f"fits: {result.fits_from_cache} from cache, {result.fits_fitted} fitted ({_cache.cache_directory()})")

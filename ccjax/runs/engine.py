@@ -25,6 +25,7 @@ from tqdm.auto import tqdm
 
 from ccjax import metrics
 from ccjax.estimators.base import AbstractEstimator, estimate_batch
+from ccjax.runs import hosts
 from ccjax.scenes import Scenes
 
 STATISTICS = ("angular", "rg", "rgb", "brightness", "map_rg", "map_rgb")
@@ -102,13 +103,16 @@ class Placement:
     """
 
     def __init__(self, mesh: jax.sharding.Mesh | None = None):
+        self.mesh = mesh
         self.sharding = None
         self.n_devices = 1
+        self.spans_processes = False
         if mesh is not None:
             if len(mesh.axis_names) != 1:
                 raise ValueError(f"mesh: expected one axis, got {mesh.axis_names}")
-            self.sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec(mesh.axis_names[0]))
+            self.sharding = hosts.item_sharding(mesh)
             self.n_devices = int(mesh.devices.size)
+            self.spans_processes = len({device.process_index for device in mesh.devices.flat}) > 1
 
     def place(self, items):
         """``items`` (leading axis: the items) on the devices.
@@ -119,7 +123,15 @@ class Placement:
         Returns:
             The same, sharded along the item axis when there is a mesh.
         """
-        return items if self.sharding is None else jax.device_put(items, self.sharding)
+        if self.mesh is None:
+            return items
+        if self.spans_processes:
+            # Every process derives the whole chunk (keys are cheap) and contributes its own block
+            # of rows: the chunk is a multiple of the device count, so the blocks are equal.
+            count = jax.tree.leaves(items)[0].shape[0]
+            share = hosts.process_share(count)
+            items = jax.tree.map(lambda leaf: leaf[share], items)
+        return hosts.shard_items(items, self.mesh)
 
     def fetch(self, tree):
         """A PyTree of device arrays as NumPy arrays on the host.
@@ -130,7 +142,7 @@ class Placement:
         Returns:
             The same tree of NumPy arrays.
         """
-        return jax.device_get(tree)
+        return jax.device_get(tree) if self.mesh is None else hosts.global_value(tree)
 
 
 def chunking(n_items: int, item_size: int, requested: int | None = None, n_devices: int = 1) -> tuple[int, int]:

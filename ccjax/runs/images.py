@@ -22,6 +22,7 @@ import numpy as np
 from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.reading import LinearImage
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, input_shapes, run_model
+from ccjax.runs import hosts
 from ccjax.runs.sources import ImageFolder, check_preprocessing, input_rules
 
 
@@ -108,6 +109,7 @@ def run_models(
     progress: bool = False,
     keep_going: bool = True,
     each: Callable[[int, LinearImage, dict[str, Estimate]], None] | None = None,
+    share: bool = True,
 ) -> ImageRun:
     """Run every model on every item of ``source``, each on its own kind of input.
 
@@ -133,6 +135,11 @@ def run_models(
             otherwise its error is raised.
         each: called after each estimated item with ``(index in source, image, {label: Estimate})``
             (e.g. to write a corrected image before the next one is read).
+        share: under ``jax.distributed`` (several processes), each process reads and estimates
+            only its :func:`~ccjax.runs.hosts.process_share` of the items and the per-item results
+            and failure records are pooled (:func:`~ccjax.runs.hosts.gather`), so every process
+            returns the whole run; ``each`` is called for this process's items only. False: this
+            process runs every item given.
 
     Returns:
         :class:`ImageRun`.
@@ -141,6 +148,12 @@ def run_models(
 
     check_preprocessing(preprocessing)
     chosen = np.arange(len(source)) if items is None else np.asarray(items, np.int64).reshape(-1)
+    # Under jax.distributed each process reads only its share of the files; the per-item results
+    # are pooled at the end, so every process returns the whole run.
+    pooled = share and jax.process_count() > 1
+    every = chosen
+    if pooled:
+        chosen = every[hosts.process_share(len(every))]
     first = {label: fold_models[0] for label, fold_models in models.items()}
     keys, rules = input_rules(first, preprocessing)
 
@@ -201,6 +214,9 @@ def run_models(
             assert image is not None
             each(item.index, image, results)
     bar.close()
+    if pooled:
+        done, estimates, ok, status, failures = _pool(source, every, done, estimates, ok, status, failures)
+        chosen = every
     return ImageRun(
         paths=[str(source.paths[index]) for index in chosen],
         items=chosen,
@@ -214,3 +230,27 @@ def run_models(
         preprocessing={label: rules[key].name for label, key in keys.items()},
         preparation=preparation,
     )
+
+
+FAILURE_BYTES = 1024
+"""Longest failure record pooled between processes (longer ones are cut, with an ellipsis)."""
+
+
+def _pool(source: ImageFolder, every: np.ndarray, done, estimates, ok, status, failures):
+    """Every process's per-item results and failure records, in item order (``hosts.gather``)."""
+    local = every[hosts.process_share(len(every))]
+    records = np.zeros((len(local), FAILURE_BYTES), np.uint8)
+    for row, index in enumerate(local):
+        text = failures.get(str(source.paths[index]))
+        if text is not None:
+            blob = text.encode()
+            if len(blob) > FAILURE_BYTES:
+                blob = blob[: FAILURE_BYTES - 3] + b"..."
+            records[row, : len(blob)] = np.frombuffer(blob, np.uint8)
+    pooled = hosts.gather({"done": done, "estimates": estimates, "ok": ok, "status": status, "records": records})
+    texts = {}
+    for index, record in zip(every, pooled["records"], strict=True):
+        blob = bytes(record).rstrip(b"\0")
+        if blob:
+            texts[str(source.paths[index])] = blob.decode(errors="replace")
+    return pooled["done"], pooled["estimates"], pooled["ok"], pooled["status"], texts
