@@ -26,6 +26,7 @@ import numpy as np
 
 from ccjax._cache import atomic_write
 from ccjax.camera import Camera
+from ccjax.estimators.registry import qualified_name
 from ccjax.world import World
 
 SCHEMA = 1
@@ -53,18 +54,6 @@ class Unserialisable(TypeError):
 class Rejected(ValueError):
     """An entry that does not verify: unreadable, another schema or key, a digest that does not
     match, a class outside the allow-list, fields that are not the class's."""
-
-
-def qualified(cls: type) -> str:
-    """``"module:qualname"`` of ``cls`` (the name skeletons use).
-
-    Arguments:
-        cls: a class.
-
-    Returns:
-        The name.
-    """
-    return f"{cls.__module__}:{cls.__qualname__}"
 
 
 def digest(skeleton: Any, arrays: Mapping[str, np.ndarray]) -> str:
@@ -136,7 +125,7 @@ def encode(tree: Any, allowed: Mapping[str, type], arrays: dict[str, np.ndarray]
 
 
 def _allowed_name(cls: type, allowed: Mapping[str, type]) -> str:
-    name = qualified(cls)
+    name = qualified_name(cls)
     if allowed.get(name) is not cls:
         raise Unserialisable(f"{name} is not a class fitted models are rebuilt from")
     return name
