@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sys
 
-from ccjax.cli.common import build_world, world_arguments
+from ccjax.cli.common import build_world, start_processes, world_arguments
 
 NETS = ("NEURAL-NET", "SP-NEURAL-NET")
 
@@ -93,6 +93,7 @@ def run_train(args) -> int:
         raise SystemExit(
             "train: --world applies to the nets' synthetic training; images train from --camera's default world"
         )
+    start_processes()
     from ccjax import training
     from ccjax.estimators import registry
 
