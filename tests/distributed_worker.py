@@ -9,7 +9,8 @@ an image evaluation of a folder and data-parallel training, run in one of three 
   share of the image files, results are pooled with ``ccjax.runs.hosts``.
 
 Every role writes ``<out>/<role><i>.npz`` (the pooled per-item results) and ``<out>/<role><i>.json``
-(the image files this process opened, seen by an audit hook on ``open``).
+(the files this process opened, seen by an audit hook on ``open``, and the images whose pixels it
+decoded).
 """
 
 from __future__ import annotations
@@ -74,8 +75,20 @@ def main(argv=None) -> int:
 
     import numpy as np
 
+    import ccjax.io
     from ccjax.estimators import registry
     from ccjax.runs import hosts
+
+    # Every process probes every header (a few bytes each, so that all agree on the unusable files
+    # and the folds); decoding the pixels is the reading that is shared out: record it.
+    decode = ccjax.io.read_image
+
+    def recorded(path, *arguments, **options):
+        decoded.append(Path(path).name)
+        return decode(path, *arguments, **options)
+
+    decoded: list[str] = []
+    ccjax.io.read_image = recorded
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from small_world import small_world
@@ -89,12 +102,14 @@ def main(argv=None) -> int:
         out["mesh_devices"] = np.array(mesh.devices.size)
 
     sweep_part(world, models, mesh, out)
-    image_part(models, args.images, out)
+    image_part(world, models, args.images, out)
     train_part(world, mesh, out)
 
     name = f"{args.role}{args.process_id}"
     np.savez(Path(args.out) / f"{name}.npz", allow_pickle=False, **out)
-    (Path(args.out) / f"{name}.json").write_text(json.dumps(sorted(set(opened))))
+    (Path(args.out) / f"{name}.json").write_text(
+        json.dumps({"opened": sorted(set(opened)), "decoded": sorted(set(decoded))})
+    )
     return 0
 
 
@@ -108,8 +123,13 @@ def sweep_part(world, models, mesh, out) -> None:
     from ccjax.scenes import SceneTables, sample_batch, sweep_keys
 
     key = jax.random.key(7)
+    # The library's own sweep: on one device, or with the scene axis of every chunk sharded over
+    # the mesh (spanning both processes under jax.distributed).
+    result = sweep(world, list(models.items()), [SURFACES], SCENES, key=key, progress=False, mesh=mesh)
+    for label in models:
+        for name, values in result.errors[label][SURFACES].items():
+            out[f"library_sweep/{label}/{name}"] = values
     if mesh is None:
-        result = sweep(world, list(models.items()), [SURFACES], SCENES, key=key, progress=False)
         for label in models:
             for name, values in result.errors[label][SURFACES].items():
                 out[f"sweep/{label}/{name}"] = values
@@ -143,7 +163,7 @@ def sweep_part(world, models, mesh, out) -> None:
             out[f"mesh_sweep/{label}/{name}"] = np.concatenate([c[label][name] for c in chunks])[:SCENES]
 
 
-def image_part(models, folder, out) -> None:
+def image_part(world, models, folder, out) -> None:
     """(b) Angular errors of GW and RETINEX on the folder's images (each process reads its share)."""
     import numpy as np
 
@@ -158,6 +178,13 @@ def image_part(models, folder, out) -> None:
     for label in models:
         out[f"images/{label}"] = result.angular(label)
     out["images/index"] = np.arange(len(pairs))
+    # `ccjax evaluate --folds 3`'s library call: fold worlds from the other folds' ground truth.
+    from ccjax.experiments.folders import evaluate_folder
+
+    evaluation = evaluate_folder(folder, Path(folder) / "groundtruth.csv", list(models), world=world, folds=3)
+    for label in models:
+        out[f"folds/{label}"] = evaluation.results.angular(label)
+    out["folds/fold_of"] = np.asarray(evaluation.fold_of)
 
 
 def train_part(world, mesh, out) -> None:

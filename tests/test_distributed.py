@@ -135,15 +135,20 @@ def check_sweep(runs):
         for label in ("GW", "RETINEX"):
             rms = f"sweep_rms/{label}"
             assert abs(float(results[rms]) / float(reference[rms]) - 1) <= TOLERANCE, (role, rms)
+        # The library's sweep with the mesh (its engine shards every chunk over both processes).
+        for name in names:
+            assert_close(results["library_" + name], reference[name], f"{role} library_{name}")
 
 
 def check_images(runs):
-    """(b) Each process opens only its share of the folder's images; the pooled angular errors are
-    the single-process ``run_images`` ones, in file order."""
-    reference, everything = runs["reference0"]
-    images = sorted(name for name in everything if name.endswith(".png"))
+    """(b) Each process decodes only its share of the folder's images (every process probes every
+    header); the pooled angular errors are the single-process ``run_images`` ones, in file order,
+    and so are ``evaluate --folds 3``'s (:func:`ccjax.experiments.folders.evaluate_folder`)."""
+    reference, files = runs["reference0"]
+    images = sorted(name for name in files["decoded"] if name.endswith(".png"))
     assert images == [f"im{i}.png" for i in range(7)]
-    shares = [{name for name in runs[f"process{i}"][1] if name.endswith(".png")} for i in (0, 1)]
+    assert set(images) <= set(files["opened"])
+    shares = [{name for name in runs[f"process{i}"][1]["decoded"] if name.endswith(".png")} for i in (0, 1)]
     assert shares[0] and shares[1] and not shares[0] & shares[1], shares
     assert shares[0] | shares[1] == set(images)
     assert shares[0] == {f"im{i}.png" for i in range(4)}  # ceil(7 / 2) = 4 for process 0
@@ -153,6 +158,9 @@ def check_images(runs):
         for label in ("GW", "RETINEX"):
             assert_close(results[f"images/{label}"], reference[f"images/{label}"], f"{role} {label}")
             assert np.all(reference[f"images/{label}"] > 0)  # real errors, not a vacuous match
+            # `evaluate --folds 3` (fold worlds): the pooled per-image errors of one process.
+            assert_close(results[f"folds/{label}"], reference[f"folds/{label}"], f"{role} folds {label}")
+        assert np.array_equal(results["folds/fold_of"], reference["folds/fold_of"])
 
 
 def check_training(runs):
