@@ -14,7 +14,11 @@ import pytest
 
 from ccjax import cli
 from ccjax.estimators import gamut
-from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, Status
+from ccjax.estimators.base import (
+    AbstractStatisticsSurfaceEstimator,
+    Estimate,
+    Status,
+)
 from ccjax.estimators.gamut.engine import GridOptions
 from ccjax.experiments import sweeps
 from ccjax.runs import store, synthetic
@@ -138,17 +142,10 @@ def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path):
                     np.testing.assert_allclose(got, value, rtol=1e-6, atol=atol, err_msg=f"{method} {n} {name}")
 
 
-class _FailsAtSixteen(AbstractSurfaceEstimator):
+class _FailsAtSixteen(AbstractStatisticsSurfaceEstimator):
     """Grey world, except that tracing it on 16-surface scenes raises (a model that cannot compile)."""
 
     estimates_brightness: ClassVar[bool] = True
-    world_based: ClassVar[bool] = False
-    default_preprocessing: ClassVar[str] = "pixels"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        return None
 
     def __call__(self, rgb, mask):
         if rgb.shape[0] == 16:

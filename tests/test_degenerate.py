@@ -8,11 +8,9 @@ import pytest
 
 from ccjax.estimators import registry
 from ccjax.estimators.base import (
-    NO_PADDING_BRANCH,
     AbstractEstimator,
-    AbstractSurfaceEstimator,
+    AbstractWorldSurfaceEstimator,
     Estimate,
-    Padding,
     Status,
 )
 from ccjax.experiments.degenerate import (
@@ -86,18 +84,11 @@ def test_a_dishonest_model_is_caught(default_world):
     assert all(row.finite and row.fallback_honest for row in rows)
 
 
-class _AlwaysOk(AbstractSurfaceEstimator):
+class _AlwaysOk(AbstractWorldSurfaceEstimator):
     """Claims ESTIMATED whatever the scene (a deliberately broken estimator)."""
 
     inner: AbstractEstimator
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        return None
 
     def __call__(self, rgb, mask):
         return Estimate(illuminant=self.inner(rgb, mask).illuminant, status=jnp.asarray(int(Status.ESTIMATED)))

@@ -4,7 +4,9 @@
 from ccjax.estimators.base import (
     AbstractEstimator,
     AbstractImageEstimator,
+    AbstractStatisticsSurfaceEstimator,
     AbstractSurfaceEstimator,
+    AbstractWorldSurfaceEstimator,
     Estimate,
     Estimator,
     Status,
@@ -17,7 +19,9 @@ from ccjax.estimators.registry import Entry, available, fit, model_classes
 __all__ = [
     "AbstractEstimator",
     "AbstractImageEstimator",
+    "AbstractStatisticsSurfaceEstimator",
     "AbstractSurfaceEstimator",
+    "AbstractWorldSurfaceEstimator",
     "Entry",
     "Estimate",
     "Estimator",

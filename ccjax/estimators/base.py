@@ -190,6 +190,38 @@ class AbstractSurfaceEstimator(AbstractEstimator):
         """
 
 
+class AbstractWorldSurfaceEstimator(AbstractSurfaceEstimator):
+    """A surface estimator fitted to a world's lights, reflectances or canonical light (gamut
+    mapping aside: Colour by Correlation, the nets, NOTHING, AVE-ILLUM): on photographs it gets the
+    thesis' 5x5 block averages (§4.6), its kernel has no branch on the scene's size and a batch is
+    one ``vmap``. Concrete subclasses state ``estimates_brightness``."""
+
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
+
+
+class AbstractStatisticsSurfaceEstimator(AbstractSurfaceEstimator):
+    """A statistics method on surface lists (shades of grey, max-RGB): the world gives only its
+    fallback light, it is evaluated on every usable pixel as the field does, its kernel has no
+    branch on the scene's size and a batch is one ``vmap``. Concrete subclasses state
+    ``estimates_brightness``."""
+
+    world_based: ClassVar[bool] = False
+    default_preprocessing: ClassVar[str] = "pixels"
+    pools_pixels: ClassVar[bool] = False
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
+
+
 class AbstractImageEstimator(AbstractEstimator):
     """An estimator of ONE image: ``model(image (H, W, 3), mask (H, W))`` (spatial methods such as
     grey edge, which need the pixels' neighbours)."""

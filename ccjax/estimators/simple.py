@@ -18,7 +18,9 @@ from jaxtyping import Array, Bool, Float
 from ccjax.estimators.base import (
     NO_PADDING_BRANCH,
     TINY,
+    AbstractStatisticsSurfaceEstimator,
     AbstractSurfaceEstimator,
+    AbstractWorldSurfaceEstimator,
     Estimate,
     Padding,
     pairwise_reduce,
@@ -34,19 +36,11 @@ def average_illuminant(world: World) -> Float[Array, "3"]:
 
 
 @typing.final
-class Constant(AbstractSurfaceEstimator):
+class Constant(AbstractWorldSurfaceEstimator):
     """A scene-independent estimate: NOTHING (the canonical white) or AVE-ILLUM (§4.5)."""
 
     illuminant: Float[Array, "3"]
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         # The answer ignores the scene, but a scene without one lit valid surface (all masked, all
@@ -99,7 +93,7 @@ class GreyWorld(AbstractSurfaceEstimator):
 
 
 @typing.final
-class ShadesOfGrey(AbstractSurfaceEstimator):
+class ShadesOfGrey(AbstractStatisticsSurfaceEstimator):
     """Shades of grey (Finlayson & Trezzi 2004): ``w = 2 * (mean(rho^p))^(1/p)`` per channel.
 
     The factor 2 is grey world's, so ``p = 1`` is exactly GW; as ``p -> inf`` the chromaticity
@@ -110,14 +104,6 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
     fallback: Float[Array, "3"]
     # A statistics method, evaluated on every usable pixel as the field does.
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = False
-    default_preprocessing: ClassVar[str] = "pixels"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)
@@ -145,7 +131,7 @@ class ShadesOfGrey(AbstractSurfaceEstimator):
 
 
 @typing.final
-class MaxRGB(AbstractSurfaceEstimator):
+class MaxRGB(AbstractStatisticsSurfaceEstimator):
     """RETINEX in its limiting form, per-channel maximum ``w_k = max_i rho_ik`` (§4.5.2).
 
     With ``temperature`` set, a soft maximum ``s t * logsumexp(rho / (s t))`` over valid pixels
@@ -157,14 +143,6 @@ class MaxRGB(AbstractSurfaceEstimator):
     temperature: Float[Array, ""] | None = None
     # A statistics method, evaluated on every usable pixel as the field does.
     estimates_brightness: ClassVar[bool] = True
-    world_based: ClassVar[bool] = False
-    default_preprocessing: ClassVar[str] = "pixels"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         count = jnp.sum(mask)

@@ -12,7 +12,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_to_rgb
-from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, with_fallback
+from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import (
     RG_BINS,
     chromaticity,
@@ -38,7 +38,7 @@ RG_CELLS = compact_rg_cells().astype(np.int32)
 
 
 @typing.final
-class ColourByCorrelation3D(AbstractSurfaceEstimator):
+class ColourByCorrelation3D(AbstractWorldSurfaceEstimator):
     """Colour by Correlation in (r, g, L) (chapter 10, §10.1–10.2).
 
     Every (training illuminant ``i``, brightness ``b_q``) pair is a hypothesis. ``B0 = 4.3 x
@@ -80,14 +80,6 @@ class ColourByCorrelation3D(AbstractSurfaceEstimator):
     softness: float | None = eqx.field(static=True, default=None)
     temperature: float = eqx.field(static=True, default=1.0)
     estimates_brightness: ClassVar[bool] = True
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def _prepare(self, rgb, mask):
         valid = valid_pixels(rgb, mask)

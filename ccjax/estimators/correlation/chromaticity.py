@@ -13,7 +13,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_numpy, rg_to_rgb
-from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, with_fallback
+from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores, valid_pixels
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
@@ -28,7 +28,7 @@ from ccjax.world import World
 
 
 @typing.final
-class ColourByCorrelation(AbstractSurfaceEstimator):
+class ColourByCorrelation(AbstractWorldSurfaceEstimator):
     """2-D Colour by Correlation with a probabilistic matrix (§4.5.4, eqs. 4.2–4.5).
 
     The scene's bins select matrix rows whose sum is the log-likelihood of each training illuminant;
@@ -53,14 +53,6 @@ class ColourByCorrelation(AbstractSurfaceEstimator):
     softness: float | None = eqx.field(static=True, default=None)
     temperature: float = eqx.field(static=True, default=1.0)
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, " I"]:
         """Normalised log-posterior over the training illuminants (uniform prior)."""
@@ -87,7 +79,7 @@ class ColourByCorrelation(AbstractSurfaceEstimator):
 
 
 @typing.final
-class ColourByCorrelation01(AbstractSurfaceEstimator):
+class ColourByCorrelation01(AbstractWorldSurfaceEstimator):
     """C-by-C-01 (§4.5.4): a 0/1 matrix from the convex hulls of the reflectances' (r,g); an
     illuminant's score is the number of scene bins consistent with it; the estimate is the mean
     (r,g) of the illuminants whose score is within ``tolerance`` of the maximum (by default those
@@ -105,14 +97,6 @@ class ColourByCorrelation01(AbstractSurfaceEstimator):
     fallback: Float[Array, "3"]
     tolerance: float = eqx.field(static=True, default=1.0)
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         valid = valid_pixels(rgb, mask)

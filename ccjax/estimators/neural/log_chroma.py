@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
-from ccjax.estimators.base import NO_PADDING_BRANCH, TINY, AbstractSurfaceEstimator, Estimate, Padding, with_fallback
+from ccjax.estimators.base import TINY, AbstractWorldSurfaceEstimator, Estimate, with_fallback
 
 LOG_CHROMA_BINS = 32
 LOG_CHROMA_EXTENT = 2.0
@@ -85,7 +85,7 @@ class ReluMLP(eqx.Module):
 
 
 @typing.final
-class LogChromaNet(AbstractSurfaceEstimator):
+class LogChromaNet(AbstractWorldSurfaceEstimator):
     """MLP on the log-chroma histogram (module docstring).
 
     Attributes:
@@ -99,14 +99,6 @@ class LogChromaNet(AbstractSurfaceEstimator):
     bins: int = eqx.field(static=True, default=LOG_CHROMA_BINS)
     extent: float = eqx.field(static=True, default=LOG_CHROMA_EXTENT)
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         histogram = log_chroma_histogram(rgb, mask, self.bins, self.extent)

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from ccjax._colour import chromaticity, rg_bin, rg_to_rgb, valid_pixels
-from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractSurfaceEstimator, Estimate, Padding, Status
+from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, Status
 
 BINS = 50
 """(r,g) bins per axis; cells are ``1 / BINS = 0.02`` wide (§4.5.5)."""
@@ -119,7 +119,7 @@ def _project_to_simplex(point: Float[Array, "2"]) -> tuple[Float[Array, "2"], ja
 
 
 @typing.final
-class NeuralNet(AbstractSurfaceEstimator):
+class NeuralNet(AbstractWorldSurfaceEstimator):
     """The NEURAL-NET / SP-NEURAL-NET estimator: ``rg_to_rgb(net(histogram))`` (§4.5.5).
 
     A chromaticity method: the estimate is ``(r, g, 1 - r - g)``. A prediction outside the
@@ -134,14 +134,6 @@ class NeuralNet(AbstractSurfaceEstimator):
     net: Mlp
     fallback: Float[Array, "3"]
     estimates_brightness: ClassVar[bool] = False
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         has_data = jnp.any(valid_pixels(rgb, mask))
