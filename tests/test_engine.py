@@ -19,7 +19,7 @@ from ccjax import experiments, scenes
 from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
 from ccjax.experiments import protocols
-from ccjax.runs import engine, synthetic
+from ccjax.runs import engine, store, synthetic
 from ccjax.runs.synthetic import SyntheticSource, padded_sizes, run_synthetic
 from ccjax.scenes import SceneOptions
 
@@ -28,7 +28,7 @@ LABELS = ("NOTHING", "GW", "RETINEX", "shades-of-grey-p6")
 
 @pytest.fixture(scope="module")
 def models(default_world):
-    return [registry.fit_cached(label, default_world) for label in LABELS]
+    return [store.fit(label, default_world) for label in LABELS]
 
 
 def _assert_same_errors(got: dict, expected: dict, approximate: bool = False) -> None:
@@ -183,13 +183,13 @@ SHARDED = r"""
 import json
 import jax, numpy as np
 from jax.sharding import Mesh
-from ccjax.estimators import registry
+from ccjax.runs import store
 from ccjax.runs.synthetic import SyntheticSource, run_synthetic
 from ccjax.scenes import SceneOptions
 from ccjax.world import World
 assert len(jax.devices()) == 4, jax.devices()
 world = World.default()
-models = [registry.fit_cached(label, world) for label in ("GW", "NOTHING")]
+models = [store.fit(label, world) for label in ("GW", "NOTHING")]
 mesh = Mesh(np.array(jax.devices()), ("scenes",))
 sources = [SyntheticSource(jax.random.key(7), (8,), 64, SceneOptions.resolve(specular=True, metallic=True))]
 one = run_synthetic(world, models, sources, chunk_size=32, progress=False)

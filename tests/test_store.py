@@ -16,6 +16,7 @@ import subprocess
 import sys
 import textwrap
 import warnings
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -25,7 +26,7 @@ import pytest
 import ccjax
 from ccjax import cli
 from ccjax.estimators import registry
-from ccjax.estimators.base import AbstractSurfaceEstimator
+from ccjax.estimators.base import AbstractWorldSurfaceEstimator
 from ccjax.runs import store
 from ccjax.world import World
 
@@ -132,8 +133,9 @@ def test_memory_returns_the_same_object_and_options_are_keys(cache, fits, small_
 
 
 def test_a_model_that_is_not_data_stays_in_memory(cache, monkeypatch, small_test_world):
-    class Holder(AbstractSurfaceEstimator):
+    class Holder(AbstractWorldSurfaceEstimator):
         function: object = eqx.field(static=True)
+        estimates_brightness: ClassVar[bool] = False
 
         def __call__(self, rgb, mask):
             raise NotImplementedError
