@@ -55,12 +55,15 @@ def fits(monkeypatch):
 
 
 def _digest(skeleton, arrays) -> str:
-    hasher = hashlib.sha256(json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode())
-    for name in sorted(arrays):
-        array = np.ascontiguousarray(arrays[name])
-        hasher.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
-        hasher.update(array.tobytes())
-    return hasher.hexdigest()
+    # The documented rule, written as one byte string: the skeleton's compact sorted JSON, then
+    # per array (sorted by name) a header line and its C-order bytes.
+    parts = [json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode()]
+    parts += [
+        f"\n{name} {np.asarray(arrays[name]).dtype.str} {np.shape(arrays[name])}\n".encode()
+        + np.asarray(arrays[name]).tobytes(order="C")
+        for name in sorted(arrays)
+    ]
+    return hashlib.sha256(b"".join(parts)).hexdigest()
 
 
 def _entry(cache, kind="fits"):

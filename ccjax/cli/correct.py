@@ -2,15 +2,8 @@
 
 from __future__ import annotations
 
+from ccjax.cli import image_options
 from ccjax.cli.common import check_distinct, check_output_file, check_output_folder, path_key, world_arguments
-from ccjax.cli.image_options import (
-    check_labels,
-    dark_fraction,
-    image_arguments,
-    image_source,
-    image_world,
-    require_camera,
-)
 
 OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 
@@ -44,7 +37,7 @@ def add_correct(sub) -> None:
         help="replace existing output images and previews (they are refused otherwise; inputs are never replaced)",
     )
     world_arguments(p)
-    image_arguments(p)
+    image_options.image_arguments(p)
     p.set_defaults(func=run_correct)
 
 
@@ -134,11 +127,11 @@ def run_correct(args) -> int:
     from ccjax import runs
     from ccjax.runs.sources import raise_failures
 
-    check_labels([args.method], args)
+    image_options.check_labels([args.method], args)
     paths, outputs, previews = correct_outputs(args)
-    require_camera([args.method], args)
+    image_options.require_camera([args.method], args)
     sharpening = read_sharpening(args.sharpening)
-    source = image_source(paths, args)
+    source = image_options.image_source(paths, args)
 
     def report(index, estimate, output, preview) -> None:
         illuminant = np.asarray(estimate.illuminant)
@@ -150,10 +143,10 @@ def run_correct(args) -> int:
         args.method,
         outputs,
         previews=previews,
-        world=image_world(args),
+        world=image_options.image_world(args),
         sharpening=sharpening,
         preprocessing=args.preprocessing,
-        dark=dark_fraction(args),
+        dark=image_options.dark_fraction(args),
         progress=not args.no_progress,
         each=report,
     )

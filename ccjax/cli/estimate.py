@@ -4,15 +4,8 @@ from __future__ import annotations
 
 import json
 
+from ccjax.cli import image_options
 from ccjax.cli.common import world_arguments
-from ccjax.cli.image_options import (
-    check_labels,
-    dark_fraction,
-    image_arguments,
-    image_source,
-    image_world,
-    require_camera,
-)
 
 
 def add_estimate(sub) -> None:
@@ -35,7 +28,7 @@ def add_estimate(sub) -> None:
         "method and camera it was trained for come from its record",
     )
     world_arguments(p)
-    image_arguments(p)
+    image_options.image_arguments(p)
     p.add_argument(
         "--json",
         action="store_true",
@@ -55,8 +48,8 @@ def estimate_model(args):
     if (args.method is None) == (args.model is None):
         raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
     if args.model is None:
-        check_labels([args.method], args)
-        require_camera([args.method], args)
+        image_options.check_labels([args.method], args)
+        image_options.require_camera([args.method], args)
         return args.method, None
     from pathlib import Path
 
@@ -66,7 +59,7 @@ def estimate_model(args):
         raise ValueError(f"--model: no such model file: {args.model}")
     if args.world != "default" or args.camera is not None:
         raise ValueError("--model: the model's world comes from its file; leave out --world and --camera")
-    check_labels([], args)
+    image_options.check_labels([], args)
     model = load_model(args.model)
     return f"{Path(args.model).name}", model
 
@@ -76,13 +69,13 @@ def run_estimate(args) -> int:
     from ccjax.runs.sources import raise_failures
 
     label, model = estimate_model(args)
-    source = image_source(args.images, args)
+    source = image_options.image_source(args.images, args)
     run = runs.estimate_folder(
         source,
         model if model is not None else label,
-        world=image_world(args) if model is None else None,
+        world=image_options.image_world(args) if model is None else None,
         preprocessing=args.preprocessing,
-        dark=dark_fraction(args),
+        dark=image_options.dark_fraction(args),
         progress=not args.no_progress,
     )
     records = [{k: r[k] for k in ("path", "illuminant", "rg", "ok")} for r in run.records()]

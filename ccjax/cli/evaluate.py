@@ -7,16 +7,8 @@ import json
 import sys
 import time
 
+from ccjax.cli import image_options
 from ccjax.cli.common import check_output_file, label_list, start_processes, world_arguments, write
-from ccjax.cli.image_options import (
-    as_option_error,
-    check_labels,
-    dark_fraction,
-    image_arguments,
-    image_world,
-    read_options,
-    require_camera,
-)
 
 
 def add_evaluate(sub) -> None:
@@ -70,7 +62,7 @@ def add_evaluate(sub) -> None:
         help="write one row per image and method (estimate, ok, status, angular error) as CSV ('-' for stdout)",
     )
     world_arguments(p)
-    image_arguments(p)
+    image_options.image_arguments(p)
     p.set_defaults(func=run_evaluate)
 
 
@@ -115,31 +107,31 @@ def run_evaluate(args) -> int:
     start = time.perf_counter()
     writer = start_processes()
     check_folds(args)
-    check_labels(args.methods + (args.train or []), args)
+    image_options.check_labels(args.methods + (args.train or []), args)
     for option, path in (("--json", args.json), ("--csv", args.csv)):
         if path:
             check_output_file(path, option)
-    require_camera(args.methods + (args.train or []), args)
+    image_options.require_camera(args.methods + (args.train or []), args)
     try:
         evaluation = evaluate_folder(
             args.directory,
             args.ground_truth,
             args.methods,
-            world=image_world(args),
+            world=image_options.image_world(args),
             folds=args.folds,
             train=args.train,
             epochs=args.epochs,
             seed=args.seed,
             preprocessing=args.preprocessing,
-            dark=dark_fraction(args),
-            read_options=read_options(args),
+            dark=image_options.dark_fraction(args),
+            read_options=image_options.read_options(args),
             masks=args.mask,
             check_camera=args.camera is not None or args.world != "default",
             progress=not args.no_progress,
             log=lambda line: print(line, file=sys.stderr),
         )
     except ValueError as error:
-        raise as_option_error(error) from None
+        raise image_options.as_option_error(error) from None
     if not writer:  # under jax.distributed every process holds the pooled results; one reports them
         return 0
     print(header(evaluation, args))

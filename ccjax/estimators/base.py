@@ -172,6 +172,17 @@ class AbstractEstimator(eqx.Module):
         """Estimate the light of one scene (its shape is the input kind's, see the subclasses)."""
 
 
+class AbstractUnblockedEstimator(AbstractEstimator):
+    """An estimator whose kernel has no branch on the scene's size: nothing is padded and a batch
+    is one ``vmap`` on every backend. Mixed into the intermediates and final classes it fits."""
+
+    padding: ClassVar[Padding] = NO_PADDING_BRANCH
+
+    def block_size(self, backend: str) -> int | None:
+        """One ``vmap`` over the whole batch on every backend."""
+        return None
+
+
 class AbstractSurfaceEstimator(AbstractEstimator):
     """An estimator of ONE scene given as a list of surface RGBs: ``model(rgb (P, 3), mask (P,))``."""
 
@@ -190,7 +201,7 @@ class AbstractSurfaceEstimator(AbstractEstimator):
         """
 
 
-class AbstractWorldSurfaceEstimator(AbstractSurfaceEstimator):
+class AbstractWorldSurfaceEstimator(AbstractSurfaceEstimator, AbstractUnblockedEstimator):
     """A surface estimator fitted to a world's lights, reflectances or canonical light (gamut
     mapping aside: Colour by Correlation, the nets, NOTHING, AVE-ILLUM): on photographs it gets the
     thesis' 5x5 block averages (§4.6), its kernel has no branch on the scene's size and a batch is
@@ -199,14 +210,9 @@ class AbstractWorldSurfaceEstimator(AbstractSurfaceEstimator):
     world_based: ClassVar[bool] = True
     default_preprocessing: ClassVar[str] = "ave5"
     pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
 
-class AbstractStatisticsSurfaceEstimator(AbstractSurfaceEstimator):
+class AbstractStatisticsSurfaceEstimator(AbstractSurfaceEstimator, AbstractUnblockedEstimator):
     """A statistics method on surface lists (shades of grey, max-RGB): the world gives only its
     fallback light, it is evaluated on every usable pixel as the field does, its kernel has no
     branch on the scene's size and a batch is one ``vmap``. Concrete subclasses state
@@ -215,11 +221,6 @@ class AbstractStatisticsSurfaceEstimator(AbstractSurfaceEstimator):
     world_based: ClassVar[bool] = False
     default_preprocessing: ClassVar[str] = "pixels"
     pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
 
 class AbstractImageEstimator(AbstractEstimator):

@@ -16,13 +16,12 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import (
-    NO_PADDING_BRANCH,
     TINY,
     AbstractStatisticsSurfaceEstimator,
     AbstractSurfaceEstimator,
+    AbstractUnblockedEstimator,
     AbstractWorldSurfaceEstimator,
     Estimate,
-    Padding,
     pairwise_reduce,
     with_fallback,
 )
@@ -50,7 +49,7 @@ class Constant(AbstractWorldSurfaceEstimator):
 
 
 @typing.final
-class GreyWorld(AbstractSurfaceEstimator):
+class GreyWorld(AbstractSurfaceEstimator, AbstractUnblockedEstimator):
     """Grey world, ``w = mean(rho) * (w_C / g_C)`` (§4.5.1, eq. 5.5).
 
     ``scale = w_C / g_C``: 2 for GW (grey = 50 % reflectance), the canonical white over the
@@ -69,7 +68,6 @@ class GreyWorld(AbstractSurfaceEstimator):
     database: bool = eqx.field(static=True, default=False)
     estimates_brightness: ClassVar[bool] = True
     pools_pixels: ClassVar[bool] = True
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
     @property
     def world_based(self) -> bool:  # pyright: ignore[reportIncompatibleVariableOverride]
@@ -80,10 +78,6 @@ class GreyWorld(AbstractSurfaceEstimator):
     def default_preprocessing(self) -> str:  # pyright: ignore[reportIncompatibleVariableOverride]
         """``"ave5"`` for DB-GW (world-based, §4.6), ``"pixels"`` for GW (every usable pixel)."""
         return "ave5" if self.database else "pixels"
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         weights = mask.astype(rgb.dtype)

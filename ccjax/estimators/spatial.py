@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractImageEstimator, Estimate, Padding, with_fallback
+from ccjax.estimators.base import AbstractImageEstimator, AbstractUnblockedEstimator, Estimate, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
 from ccjax.world import World
@@ -184,7 +184,7 @@ def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: 
 
 
 @typing.final
-class GreyEdge(AbstractImageEstimator):
+class GreyEdge(AbstractImageEstimator, AbstractUnblockedEstimator):
     """Grey edge of order ``n``, Minkowski norm ``p`` and scale ``sigma`` (module docstring).
 
     Call it on one image: ``model(image (H, W, 3), mask (H, W)) -> Estimate``; ``jax.vmap`` it over
@@ -207,11 +207,6 @@ class GreyEdge(AbstractImageEstimator):
     world_based: ClassVar[bool] = False
     default_preprocessing: ClassVar[str] = "pixels"
     pools_pixels: ClassVar[bool] = False
-    padding: ClassVar[Padding] = NO_PADDING_BRANCH
-
-    def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
         planes = jnp.moveaxis(image, -1, 0)  # channel-first: the layout XLA's CPU code filters fastest

@@ -145,8 +145,28 @@ def fit(
     )
 
 
+class AbstractGamutMapEstimator(AbstractSurfaceEstimator):
+    """A selector over the feasible maps of a fitted :class:`GamutModel` (hard or soft): world-based,
+    given the thesis' 5x5 block averages of a photograph (§4.6), and padded to the model's grid
+    budgets; below the smallest budget the kernel reads only the usable observations. Final
+    subclasses hold ``model`` and state ``block_size``."""
+
+    if typing.TYPE_CHECKING:
+        # A field of every final subclass (a dataclass field cannot be declared abstract here).
+        model: GamutModel
+    estimates_brightness: ClassVar[bool] = True
+    world_based: ClassVar[bool] = True
+    default_preprocessing: ClassVar[str] = "ave5"
+    pools_pixels: ClassVar[bool] = False
+
+    @property
+    def padding(self) -> Padding:  # pyright: ignore[reportIncompatibleVariableOverride]
+        """The model's grid observation budgets, counted over the counted slots."""
+        return Padding(self.model.options.budgets(), COUNTED_SLOTS)
+
+
 @typing.final
-class GamutMapping(AbstractSurfaceEstimator):
+class GamutMapping(AbstractGamutMapEstimator):
     """A gamut-mapping estimator: one model and one selector (Table 4.1, §6.2).
 
     ``GamutMapping(model, "SCWIA", 12)`` is ECRULE-SCWIA-12 when ``model`` is an ECRULE model.
@@ -166,15 +186,6 @@ class GamutMapping(AbstractSurfaceEstimator):
     model: GamutModel
     selector: str = eqx.field(static=True)
     power: float = eqx.field(static=True, default=12.0)
-    estimates_brightness: ClassVar[bool] = True
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-
-    @property
-    def padding(self) -> Padding:  # pyright: ignore[reportIncompatibleVariableOverride]
-        """The engine's observation budgets; below the smallest it reads only usable observations."""
-        return Padding(self.model.options.budgets(), COUNTED_SLOTS)
 
     def block_size(self, backend: str) -> int | None:
         """128 scenes: measured against 16, 32 and 64 on CPU (interleaved runs, median of 9) with

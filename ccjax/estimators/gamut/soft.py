@@ -19,18 +19,17 @@ input), widened by ``margin`` so the soft mask has decayed at its edges.
 from __future__ import annotations
 
 import typing
-from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
+from ccjax.estimators.base import Estimate
 from ccjax.estimators.gamut import average, mv, scwia
-from ccjax.estimators.gamut.constraints_3d import COUNTED_SLOTS, locate_box, observations, usable_observations
+from ccjax.estimators.gamut.constraints_3d import locate_box, observations, usable_observations
 from ccjax.estimators.gamut.engine import OUTSIDE, cone_violation, directions, dot, square_grid
-from ccjax.estimators.gamut.model import GamutModel
+from ccjax.estimators.gamut.model import AbstractGamutMapEstimator, GamutModel
 from ccjax.estimators.gamut.relaxation import relaxation_level
 from ccjax.estimators.gamut.selectors import SELECTORS, finish, mask_violation
 
@@ -41,7 +40,7 @@ def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, " G"]:
 
 
 @typing.final
-class SoftGamutMapping(AbstractSurfaceEstimator):
+class SoftGamutMapping(AbstractGamutMapEstimator):
     """A gamut-mapping selector with soft feasibility and soft selection.
 
     Attributes:
@@ -60,15 +59,6 @@ class SoftGamutMapping(AbstractSurfaceEstimator):
     kappa: float = eqx.field(static=True, default=0.002)
     beta: float = eqx.field(static=True, default=200.0)
     margin: float = eqx.field(static=True, default=0.02)
-    estimates_brightness: ClassVar[bool] = True
-    world_based: ClassVar[bool] = True
-    default_preprocessing: ClassVar[str] = "ave5"
-    pools_pixels: ClassVar[bool] = False
-
-    @property
-    def padding(self) -> Padding:  # pyright: ignore[reportIncompatibleVariableOverride]
-        """The hard engine's observation budgets (the soft selector shares its grid options)."""
-        return Padding(self.model.options.budgets(), COUNTED_SLOTS)
 
     def block_size(self, backend: str) -> int | None:
         """One ``vmap`` over the whole batch on every backend."""
