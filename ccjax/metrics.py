@@ -7,6 +7,7 @@ batches directly and inside ``jit``/``vmap``/``grad``. Gradients are safe at zer
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
@@ -24,16 +25,37 @@ def _safe_norm(x: Float[Array, "... n"]) -> Float[Array, "..."]:
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
 
 
-def angular_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
-    """Angle in degrees between two illuminant RGBs (thesis measure 1).
+def _unit_scale(x: Float[Array, "... n"]) -> Float[Array, "... n"]:
+    """``x`` divided by its largest ``|component|`` (zero vectors stay zero), so that products of
+    components neither underflow nor overflow whatever the scale the caller uses. The scale is
+    held out of the gradient: every measure it serves depends on direction only."""
+    largest = jax.lax.stop_gradient(jnp.max(jnp.abs(x), axis=-1, keepdims=True))
+    return x / jnp.where(largest > 0, largest, 1.0)
 
-    Computed as ``atan2(|a x b|, a . b)``: accurate for small angles, with a finite gradient at
-    zero error. A zero vector gives 90 degrees against anything non-zero.
+
+def angular_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
+    """Angle in degrees between two illuminant RGBs (thesis measure 1, Barnard 1999 §4.2).
+
+    Computed as ``atan2(|a x b|, a . b)`` on each vector divided by its largest ``|component|``
+    first, so any scale gives the same angle (a float32 product of two components under- or
+    overflows beyond about 1e±19): accurate for small angles, with a finite gradient at zero
+    error. A zero vector gives 90 degrees against a non-zero one (no direction agrees with it),
+    and 0 against another zero vector.
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGB, any scale.
+        truth: ``(..., 3)`` true illuminant RGB, any scale.
+
+    Returns:
+        ``(...)`` angles in degrees, in ``[0, 180]``.
     """
-    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
+    estimate, truth = _unit_scale(jnp.asarray(estimate)), _unit_scale(jnp.asarray(truth))
+    zero_estimate, zero_truth = ~jnp.any(estimate != 0, axis=-1), ~jnp.any(truth != 0, axis=-1)
     cross = jnp.cross(estimate, truth)
-    dot = jnp.sum(estimate * truth, axis=-1)
-    return jnp.degrees(jnp.arctan2(_safe_norm(cross), dot))
+    # atan2(0, 0) has no gradient: a zero vector's angle comes from the where below instead.
+    dot = jnp.where(zero_estimate | zero_truth, 1.0, jnp.sum(estimate * truth, axis=-1))
+    angle = jnp.degrees(jnp.arctan2(_safe_norm(cross), dot))
+    return jnp.where(zero_estimate != zero_truth, jnp.asarray(90.0, angle.dtype), angle)
 
 
 def rg_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:

@@ -46,6 +46,36 @@ def test_angular_error_gradient_is_finite_at_zero_error():
     assert np.all(np.isfinite(grad_rg))
 
 
+@pytest.mark.parametrize("scale", [1e-30, 1e-19, 1e19, 1e30])
+def test_angular_error_is_scale_free(pairs, scale):
+    # The reference in float64 at unit scale; float32 squares of 1e-30 or 1e30 components under-
+    # or overflow, so the scaled pairs must be measured on their direction alone.
+    a, b = pairs
+    want = np.array([reference.angular_error(x, y) for x, y in zip(a[:20], b[:20], strict=True)])
+    for scaled_a, scaled_b in ((a[:20] * scale, b[:20]), (a[:20], b[:20] * scale), (a[:20] * scale, b[:20] * scale)):
+        got = np.asarray(metrics.angular_error(jnp.asarray(scaled_a, jnp.float32), jnp.asarray(scaled_b, jnp.float32)))
+        np.testing.assert_allclose(got, want, atol=2e-3)
+
+
+def test_angular_error_of_a_large_white_against_red_is_the_closed_form():
+    # (1,1,1) against (1,0,0): arccos(1/sqrt(3)) = 54.7356 degrees at any scale.
+    want = math.degrees(math.acos(1 / math.sqrt(3)))
+    for scale in (1e-30, 1.0, 1e20, 1e30):
+        got = float(metrics.angular_error(jnp.array([1.0, 1.0, 1.0]) * scale, jnp.array([1.0, 0.0, 0.0])))
+        assert got == pytest.approx(want, abs=1e-4)
+
+
+def test_angular_error_of_a_zero_vector_is_90_against_non_zero_and_0_against_zero():
+    ones, zeros = jnp.ones(3), jnp.zeros(3)
+    assert float(metrics.angular_error(zeros, ones)) == 90.0
+    assert float(metrics.angular_error(ones, zeros)) == 90.0
+    assert float(metrics.angular_error(zeros, zeros)) == 0.0
+    batch = metrics.angular_error(jnp.stack([zeros, ones, ones * 1e-30]), jnp.stack([ones * 1e30, zeros, ones]))
+    np.testing.assert_array_equal(np.asarray(batch), [90.0, 90.0, 0.0])
+    grad = jax.grad(lambda e: metrics.angular_error(e, ones))(zeros)
+    assert np.all(np.isfinite(grad))
+
+
 def test_mapping_errors_match_reference():
     rng = np.random.default_rng(2)
     for _ in range(20):
