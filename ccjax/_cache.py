@@ -117,9 +117,13 @@ def content_key(kind: str, *parts: Any) -> str:
     return digest.hexdigest()[:24]
 
 
-def atomic_write(path: Path, blob: bytes) -> None:
-    """Write ``blob`` to ``path`` through a temporary file in the same folder and ``os.replace``, so
-    readers never see a partial file; the file gets the usual permissions (umask)."""
+def atomic_write(path: Path, blob: bytes, *, replace: bool = True) -> None:
+    """Write ``blob`` to ``path`` through a temporary file in the same folder put in place
+    (:func:`ccjax.io.outputs.put_in_place`), so readers never see a partial file; the file gets
+    the usual permissions (umask). Without ``replace`` an existing ``path`` is kept
+    (``FileExistsError``)."""
+    from ccjax.io.outputs import put_in_place
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
@@ -129,9 +133,11 @@ def atomic_write(path: Path, blob: bytes) -> None:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)  # mkstemp's 0600 is for the temporary name only
-        os.replace(temporary, path)
-    except BaseException:
+        put_in_place(temporary, path, overwrite=replace)
+    except BaseException as error:
         Path(temporary).unlink(missing_ok=True)
+        if isinstance(error, OSError) and error.filename is None:  # a full disk: say which file
+            raise OSError(error.errno, error.strerror, str(path)) from None
         raise
 
 
@@ -202,7 +208,7 @@ def write_arrays(
         pass
 
 
-def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any]) -> Path:
+def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any], *, replace: bool = True) -> Path:
     """Write ``model``'s array leaves (``eqx.tree_serialise_leaves``) to ``path`` and a JSON record
     (``format``, ccjax version, ``metadata``) beside it (``path.with_suffix(".json")``), atomically.
 
@@ -210,6 +216,7 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any]) -> Pa
         path: the model file (``.eqx``).
         model: any fitted model.
         metadata: what is needed to rebuild the model's skeleton (label, options, world, ...).
+        replace: replace existing files (else ``FileExistsError``, :func:`atomic_write`).
 
     Returns:
         ``path``.
@@ -219,9 +226,9 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any]) -> Pa
     path = Path(path)
     buffer = io.BytesIO()
     eqx.tree_serialise_leaves(buffer, model)
-    atomic_write(path, buffer.getvalue())
+    atomic_write(path, buffer.getvalue(), replace=replace)
     record = {"format": FORMAT_VERSION, "ccjax": __version__, **metadata}
-    atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode())
+    atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode(), replace=replace)
     return path
 
 

@@ -20,6 +20,7 @@ from ccjax import cli, io
 from ccjax.cli import common
 from ccjax.cli import estimate as estimate_command
 from ccjax.io import writing
+from ccjax.io.outputs import path_key
 from ccjax.runs import folders
 
 
@@ -126,7 +127,7 @@ def test_folder_outputs_never_collide_case_insensitively(setup, capsys):
 def test_folder_outputs_helper_gives_distinct_names(tmp_path):
     paths = [Path("d") / name for name in ("a.png", "a.tif", "A.PNG", "a.TIF", "a_tif.tif", "b.nef")]
     outputs, previews = folders.folder_outputs(paths, tmp_path)
-    keys = [common.path_key(p) for p in outputs + previews]
+    keys = [path_key(p) for p in outputs + previews]
     assert len(set(keys)) == len(keys)
     assert outputs[0].name == "a.png" and previews[0].name == "a_preview.png"
     assert outputs[-1].name == "b.tiff"  # raw inputs are written as TIFF
@@ -186,7 +187,7 @@ def test_interrupted_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path, 
         "x.tif": lambda: writing.write_linear(path, rgb),
         "x.tiff": lambda: writing.write_linear(path, rgb),
         "x_preview.png": lambda: io.write_preview(path, rgb),
-        "r.json": lambda: common.write(str(path), "{}"),
+        "r.json": lambda: common.write(str(path), "{}", overwrite=True),
     }[name]
     with monkeypatch.context() as patch:
         _interrupt_replace(patch)
@@ -276,7 +277,7 @@ def test_read_only_folder_is_refused_before_work(setup, monkeypatch, capsys):
 def test_os_errors_during_work_are_one_line(setup, monkeypatch, capsys):
     source = _image(setup / "in.png")
 
-    def refused(path, data):
+    def refused(path, data, **options):
         raise PermissionError(13, "Permission denied", str(path))
 
     monkeypatch.setattr(writing, "write_file", refused)

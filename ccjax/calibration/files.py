@@ -15,6 +15,7 @@ Every value must be finite and non-negative; errors name the line and the column
 from __future__ import annotations
 
 import csv
+import io
 import os
 from dataclasses import dataclass
 
@@ -149,13 +150,17 @@ def _check_header(path: str, line_number: int, fields: list[str]) -> None:
             )
 
 
-def write_calibration_csv(path: str | os.PathLike, spectra: np.ndarray, responses: np.ndarray) -> None:
-    """Write measurements in the calibration-file format (with the header).
+def write_calibration_csv(
+    path: str | os.PathLike, spectra: np.ndarray, responses: np.ndarray, *, overwrite: bool = True
+) -> None:
+    """Write measurements in the calibration-file format (with the header), atomically
+    (:func:`ccjax.io.writing.write_file`).
 
     Arguments:
         path: the CSV file to write.
         spectra: ``(M, 101)`` spectra.
         responses: ``(M, 3)`` raw responses.
+        overwrite: replace a file already at ``path``.
     """
     spectra = np.asarray(spectra, dtype=np.float64)
     responses = np.asarray(responses, dtype=np.float64)
@@ -163,31 +168,41 @@ def write_calibration_csv(path: str | os.PathLike, spectra: np.ndarray, response
         raise ValueError(
             f"spectra/responses: expected (M, {N_WAVELENGTHS}) and (M, 3), got {spectra.shape} and {responses.shape}"
         )
-    with open(path, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(COLUMNS)
-        for s, r in zip(spectra, responses):
-            writer.writerow([f"{v:.9g}" for v in np.concatenate([s, r])])
+    from ccjax.io.writing import write_file
+
+    text = io.StringIO(newline="")
+    writer = csv.writer(text)
+    writer.writerow(COLUMNS)
+    for s, r in zip(spectra, responses):
+        writer.writerow([f"{v:.9g}" for v in np.concatenate([s, r])])
+    write_file(path, text.getvalue(), overwrite=overwrite)
 
 
-def write_sensors_csv(path: str | os.PathLike, sensors: np.ndarray, linearisation=None) -> None:
+def write_sensors_csv(
+    path: str | os.PathLike, sensors: np.ndarray, linearisation=None, *, overwrite: bool = True
+) -> None:
     """Write fitted curves as ``wavelength_nm,R,G,B`` (101 rows); the linearisation, if any, as a
-    leading ``#`` comment.
+    leading ``#`` comment; atomically (:func:`ccjax.io.writing.write_file`: through a temporary
+    file, never through a symbolic link).
 
     Arguments:
         path: the CSV file to write.
         sensors: ``(101, 3)`` sensor curves.
         linearisation: an optional :class:`Linearisation` written as a comment.
+        overwrite: replace a file already at ``path``.
     """
+    from ccjax.io.writing import write_file
+
     sensors = np.asarray(sensors, dtype=np.float64)
-    with open(path, "w", newline="") as f:
-        if linearisation is not None:
-            f.write(
-                "# F(x) = x - a0 - a1 exp(-C (x - b)) per channel: "
-                f"a0={list(linearisation.a0)} a1={list(linearisation.a1)} "
-                f"C={list(linearisation.exp_rate)} b={list(linearisation.black)}\n"
-            )
-        writer = csv.writer(f)
-        writer.writerow(["wavelength_nm", "R", "G", " B"])
-        for w, row in zip(WAVELENGTHS, sensors):
-            writer.writerow([f"{w:g}"] + [f"{v:.9g}" for v in row])
+    text = io.StringIO(newline="")
+    if linearisation is not None:
+        text.write(
+            "# F(x) = x - a0 - a1 exp(-C (x - b)) per channel: "
+            f"a0={list(linearisation.a0)} a1={list(linearisation.a1)} "
+            f"C={list(linearisation.exp_rate)} b={list(linearisation.black)}\n"
+        )
+    writer = csv.writer(text)
+    writer.writerow(["wavelength_nm", "R", "G", "B"])
+    for w, row in zip(WAVELENGTHS, sensors):
+        writer.writerow([f"{w:g}"] + [f"{v:.9g}" for v in row])
+    write_file(path, text.getvalue(), overwrite=overwrite)

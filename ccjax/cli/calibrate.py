@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 import time
 
-from ccjax.cli.common import check_distinct, check_output_file, check_plot, int_list, write, write_plot
+from ccjax.cli.common import check_outputs as check_files
+from ccjax.cli.common import check_plot, int_list, overwrite_argument, write, write_plot
 
 
 def add_calibrate(sub) -> None:
@@ -95,6 +96,7 @@ def add_calibrate(sub) -> None:
         default=[400, 200, 100, 50, 25, 15],
         help="subset sizes for --robustness (default: 400,200,100,50,25,15)",
     )
+    overwrite_argument(p, "--plot, --save and --robustness files")
     p.set_defaults(func=run_calibrate)
 
 
@@ -116,16 +118,13 @@ def robustness_numbers(path: str) -> str:
 
 
 def check_outputs(args) -> None:
-    """Refuse unwritable or clashing output files before any work (issue 17 item 7)."""
-    check_plot(args.plot)
-    check_plot(args.robustness, "--robustness")
+    """Refuse unwritable or clashing output files before any work (:mod:`ccjax.io.outputs`)."""
     outputs = [("--plot", args.plot), ("--save", args.save), ("--robustness", args.robustness)]
     if args.robustness:
         outputs.append(("--robustness", robustness_numbers(args.robustness)))
-    outputs = [(option, path) for option, path in outputs if path]
-    for option, path in outputs:
-        check_output_file(path, option)
-    check_distinct([args.file] if args.file else [], outputs)
+    check_files([args.file] if args.file else [], outputs, overwrite=args.overwrite)
+    check_plot(args.plot)
+    check_plot(args.robustness, "--robustness")
 
 
 def run_calibrate(args) -> int:
@@ -213,10 +212,14 @@ def run_calibrate(args) -> int:
             )
         title = f"{args.file}: fitted sensors"
     if args.plot:
-        write_plot(args.plot, lambda file: experiment.plot_sensors(table, file, truth=truth, title=title))
+        write_plot(
+            args.plot,
+            lambda file: experiment.plot_sensors(table, file, truth=truth, title=title),
+            overwrite=args.overwrite,
+        )
     if args.save:
         fit = table.row(experiment.JOINT).fit
-        files.write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation)
+        files.write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation, overwrite=args.overwrite)
         print(f"wrote {args.save}", file=sys.stderr)
     if args.robustness:
         sizes = [n for n in args.sizes if n < len(spectra)]
@@ -241,8 +244,12 @@ def run_calibrate(args) -> int:
         if not args.json:
             print("\n" + result.text())
         title = f"robustness: {args.subsets} random subsets per size"
-        write_plot(args.robustness, lambda file: experiment.plot_robustness(result, file, title=title))
-        write(robustness_numbers(args.robustness), result.to_json())
+        write_plot(
+            args.robustness,
+            lambda file: experiment.plot_robustness(result, file, title=title),
+            overwrite=args.overwrite,
+        )
+        write(robustness_numbers(args.robustness), result.to_json(), overwrite=args.overwrite)
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0
 

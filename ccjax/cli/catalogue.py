@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from ccjax.cli.common import build_world, check_camera_name, check_plot, world_arguments, write_plot
+from ccjax.cli.common import (
+    build_world,
+    check_camera_name,
+    check_outputs,
+    check_plot,
+    overwrite_argument,
+    world_arguments,
+    write_plot,
+)
 
 
 def add_world(sub) -> None:
@@ -13,6 +21,7 @@ def add_world(sub) -> None:
         default=None,
         help="write a PNG of the illuminant sets and reflectances in (r,g) (thesis Fig. 4.1)",
     )
+    overwrite_argument(p, "--plot file")
     p.set_defaults(func=run_world)
 
 
@@ -21,6 +30,7 @@ def run_world(args) -> int:
 
     from ccjax import experiments
 
+    check_outputs([], [("--plot", args.plot)], overwrite=args.overwrite)
     check_plot(args.plot)
     check_camera_name(args)
     world = build_world(args)
@@ -35,7 +45,7 @@ def run_world(args) -> int:
         for row in check.rows:
             print(f"    {row['light']:<18}{row['angular']:6.2f}   ({row['images']} images)")
     if args.plot:
-        write_plot(args.plot, lambda file: experiments.plot_world(world, file))
+        write_plot(args.plot, lambda file: experiments.plot_world(world, file), overwrite=args.overwrite)
     return 0
 
 
@@ -60,6 +70,7 @@ def add_cameras(sub) -> None:
         default=None,
         help="with --check: write a PNG of the ground truth and the camera's whites in (r,g)",
     )
+    overwrite_argument(p, "--plot file")
     p.set_defaults(func=run_cameras)
 
 
@@ -77,6 +88,7 @@ def run_cameras(args) -> int:
     from ccjax.experiments import cameras
     from ccjax.runs import store
 
+    check_outputs([args.check], [("--plot", args.plot)], overwrite=args.overwrite)
     check_plot(args.plot)
     if args.world == "default" and args.camera is None:
         raise ValueError("--camera: name the camera to check the ground truth against (`ccjax cameras` lists them)")
@@ -86,7 +98,9 @@ def run_cameras(args) -> int:
     check = cameras.curve_check(truth, world)
     print(check.message())
     if args.plot:
-        write_plot(args.plot, lambda file: cameras.plot_curve_check(check, world, truth, file))
+        write_plot(
+            args.plot, lambda file: cameras.plot_curve_check(check, world, truth, file), overwrite=args.overwrite
+        )
     return 0 if check.passed else 1
 
 

@@ -88,12 +88,49 @@ def label_list(text: str) -> list[str]:
     return [part.strip() for part in text.split(",") if part.strip()]
 
 
-def write(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (``"-"``: standard output).
+def overwrite_argument(parser: argparse.ArgumentParser, what: str = "output files") -> None:
+    """``--overwrite``: existing outputs are refused without it (:mod:`ccjax.io.outputs`)."""
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help=f"replace existing {what} (they are refused otherwise; inputs are never replaced)",
+    )
+
+
+def check_outputs(
+    inputs: Iterable[str | os.PathLike],
+    outputs: Iterable[tuple[str, str | os.PathLike | None]],
+    *,
+    overwrite: bool,
+) -> None:
+    """:func:`ccjax.io.outputs.check_outputs`, before any work (imported on use: the command
+    modules import only the standard library until the command runs).
+
+    Arguments:
+        inputs: the files the command reads.
+        outputs: ``(option, path)`` of the files it writes (None: not asked for; ``"-"``: standard output).
+        overwrite: ``--overwrite``.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: an output names an input or another output, is a folder or a symbolic link,
+            exists without ``overwrite``, or its folder cannot be written.
+    """
+    from ccjax.io.outputs import check_outputs as check
+
+    check(inputs, outputs, overwrite=overwrite)
+
+
+def write(path: str, text: str, *, overwrite: bool) -> None:
+    """Write ``text`` to ``path`` atomically (``"-"``: standard output), checked first with
+    :func:`check_outputs`.
 
     Arguments:
         path: the file, or ``"-"``.
         text: the contents.
+        overwrite: ``--overwrite``: replace a file that appeared at ``path`` since the check.
 
     Returns:
         None.
@@ -103,105 +140,16 @@ def write(path: str, text: str) -> None:
     if path == "-":
         sys.stdout.write(text + ("\n" if not text.endswith("\n") else ""))
     else:
-        write_file(path, text)
+        write_file(path, text, overwrite=overwrite)
         print(f"wrote {path}", file=sys.stderr)
-
-
-def path_key(path: str | os.PathLike) -> str:
-    """:func:`ccjax.io.writing.path_key` (imported on use: the command modules import only the
-    standard library until the command runs).
-
-    Arguments:
-        path: any path.
-
-    Returns:
-        The key.
-    """
-    from ccjax.io.writing import path_key as key
-
-    return key(path)
-
-
-def check_output_file(path: str | os.PathLike, option: str, *, overwrite: bool = True) -> None:
-    """Refuse an output file that cannot be written, before any work is done.
-
-    Arguments:
-        path: the output file (``"-"``, standard output, is always accepted).
-        option: the argument's name for the message (``"--json"``, ``"OUT"``).
-        overwrite: whether an existing file may be replaced.
-
-    Returns:
-        None.
-
-    Raises:
-        ValueError: ``path`` is a folder, exists while ``overwrite`` is false, or its folder is
-            missing or not writable.
-    """
-    if str(path) == "-":
-        return
-    path = Path(path)
-    if path.is_dir():
-        raise ValueError(f"{option}: {path} is a folder; give a file name")
-    if path.exists() and not overwrite:
-        raise ValueError(f"{option}: {path} exists (use --overwrite to replace it)")
-    check_output_folder(path.parent, option, written=path)
-
-
-def check_output_folder(folder: str | os.PathLike, option: str, *, written: str | os.PathLike | None = None) -> None:
-    """Refuse an output folder that cannot be written (or created), before any work is done.
-
-    Arguments:
-        folder: the folder (may not exist yet if its nearest existing ancestor is writable).
-        option: the argument's name for the message.
-        written: the file to be written there, for the message (default: the folder).
-
-    Returns:
-        None.
-
-    Raises:
-        ValueError: ``folder`` or an ancestor is a file, or the nearest existing one is not writable.
-    """
-    folder = Path(folder).absolute()
-    written = folder if written is None else written
-    existing = folder
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if not existing.is_dir():
-        raise ValueError(f"{option}: {written} cannot be written: {existing} is not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ValueError(f"{option}: {written} cannot be written: folder {existing} is not writable")
-
-
-def check_distinct(inputs: Iterable[str | os.PathLike], outputs: Iterable[tuple[str, str | os.PathLike]]) -> None:
-    """Refuse outputs that would replace an input or each other (case-insensitively).
-
-    Arguments:
-        inputs: the files read.
-        outputs: ``(option, path)`` pairs of the files written.
-
-    Returns:
-        None.
-
-    Raises:
-        ValueError: naming both paths.
-    """
-    read = {path_key(path): Path(path) for path in inputs}
-    written: dict[str, tuple[str, Path]] = {}
-    for option, path in outputs:
-        key = path_key(path)
-        if key in read:
-            raise ValueError(f"{option}: {path} would overwrite the input {read[key]}")
-        if key in written:
-            other, first = written[key]
-            raise ValueError(f"{option}: {path} and {other} {first} are the same file")
-        written[key] = (option, Path(path))
 
 
 PLOT_SUFFIX = ".png"
 
 
 def check_plot(path: str | os.PathLike | None, option: str = "--plot") -> None:
-    """Refuse a plot path that cannot be written, before any work (nothing for ``None``).
+    """Refuse a plot path that is not a ``.png`` name (nothing for ``None``); the rest of its
+    check is :func:`check_outputs`'.
 
     Arguments:
         path: the PNG to write, or None.
@@ -211,23 +159,21 @@ def check_plot(path: str | os.PathLike | None, option: str = "--plot") -> None:
         None.
 
     Raises:
-        ValueError: not a ``.png`` name, a folder, or its folder is missing or not writable.
+        ValueError: not a ``.png`` name.
     """
-    if path is None:
-        return
-    check_output_file(path, option)
-    if Path(path).suffix.lower() != PLOT_SUFFIX:
+    if path is not None and Path(path).suffix.lower() != PLOT_SUFFIX:
         raise ValueError(f"{option}: {path} must end in .png")
 
 
-def write_plot(path: str | os.PathLike, draw) -> None:
+def write_plot(path: str | os.PathLike, draw, *, overwrite: bool) -> None:
     """Write a plot atomically: ``draw(buffer)`` renders the PNG into memory (matplotlib's
     ``savefig`` takes a file object), then :func:`ccjax.io.writing.write_file` puts it in place
     through a temporary file, so an interrupted run never leaves a partial plot.
 
     Arguments:
-        path: the ``.png`` file (checked first with :func:`check_plot`).
+        path: the ``.png`` file (checked first with :func:`check_plot` and :func:`check_outputs`).
         draw: a function of one binary file object that saves the figure there as PNG.
+        overwrite: ``--overwrite``.
 
     Returns:
         None.
@@ -238,16 +184,16 @@ def write_plot(path: str | os.PathLike, draw) -> None:
 
     buffer = io.BytesIO()
     draw(buffer)
-    write_file(path, buffer.getvalue())
+    write_file(path, buffer.getvalue(), overwrite=overwrite)
     print(f"wrote {path}", file=sys.stderr)
 
 
 def write_outputs(args, report) -> None:
     """Write ``report`` as JSON / CSV where ``--json`` / ``--csv`` name a file."""
-    if getattr(args, "json", None):
-        write(args.json, report.to_json())
-    if getattr(args, "csv", None):
-        write(args.csv, report.to_csv())
+    if args.json:
+        write(args.json, report.to_json(), overwrite=args.overwrite)
+    if args.csv:
+        write(args.csv, report.to_csv(), overwrite=args.overwrite)
 
 
 def start_processes() -> bool:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ccjax.cli import image_options
-from ccjax.cli.common import check_distinct, check_output_file, check_output_folder, path_key, world_arguments
+from ccjax.cli.common import check_outputs, overwrite_argument, world_arguments
 
 OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 
@@ -31,11 +31,7 @@ def add_correct(sub) -> None:
         help="3x3 sharpening transform T (text or .npy; rows = sharpened sensors) for a sharpened-diagonal map T^-1 "
         "diag(T w_C / T e) T",
     )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace existing output images and previews (they are refused otherwise; inputs are never replaced)",
-    )
+    overwrite_argument(p, "output images and previews")
     world_arguments(p)
     image_options.image_arguments(p)
     p.set_defaults(func=run_correct)
@@ -73,6 +69,7 @@ def correct_outputs(args):
     from pathlib import Path
 
     from ccjax import io
+    from ccjax.io.outputs import check_output_folder, path_key
 
     source, target = Path(args.input), Path(args.output)
     if source.is_dir():
@@ -98,11 +95,14 @@ def correct_outputs(args):
             raise ValueError(f"output: folder {target.parent} does not exist")
         if previews[0].suffix.lower() != ".png":
             raise ValueError(f"--preview: {previews[0]} must end in .png")
-    check_distinct(paths, [("output", output) for output in outputs] + [("--preview", preview) for preview in previews])
-    for output, preview in zip(outputs, previews, strict=True):
-        check_output_file(output, "output", overwrite=args.overwrite)
-        check_output_file(preview, "--preview", overwrite=args.overwrite)
+    written = [("output", output) for output in outputs] + [("--preview", preview) for preview in previews]
+    check_outputs(paths + sharpening_inputs(args), written, overwrite=args.overwrite)
     return paths, outputs, previews
+
+
+def sharpening_inputs(args) -> list:
+    """The ``--sharpening`` file as an input (outputs must not replace it), or nothing."""
+    return [args.sharpening] if args.sharpening else []
 
 
 def read_sharpening(path):
@@ -149,6 +149,7 @@ def run_correct(args) -> int:
         dark=image_options.dark_fraction(args),
         progress=not args.no_progress,
         each=report,
+        overwrite=args.overwrite,
     )
     raise_failures(list(run.failures.values()), len(paths))
     return 0

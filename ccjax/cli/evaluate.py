@@ -4,11 +4,12 @@ cross-validated and trained within folds (:func:`ccjax.experiments.folders.evalu
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
 from ccjax.cli import image_options
-from ccjax.cli.common import check_output_file, label_list, start_processes, world_arguments, write
+from ccjax.cli.common import check_outputs, label_list, overwrite_argument, start_processes, world_arguments, write
 
 
 def add_evaluate(sub) -> None:
@@ -61,9 +62,19 @@ def add_evaluate(sub) -> None:
         default=None,
         help="write one row per image and method (estimate, ok, status, angular error) as CSV ('-' for stdout)",
     )
+    overwrite_argument(p, "--json and --csv files")
     world_arguments(p)
     image_options.image_arguments(p)
     p.set_defaults(func=run_evaluate)
+
+
+def evaluate_inputs(args) -> list:
+    """Every file ``ccjax evaluate`` reads: the ground truth, the folder's images and the masks
+    (outputs must replace none of them)."""
+    from ccjax import io
+
+    folders = [args.directory] + ([args.mask] if args.mask else [])
+    return [args.ground_truth, *io.list_images(folder for folder in folders if os.path.isdir(folder))]
 
 
 def check_folds(args) -> None:
@@ -108,9 +119,7 @@ def run_evaluate(args) -> int:
     writer = start_processes()
     check_folds(args)
     image_options.check_labels(args.methods + (args.train or []), args)
-    for option, path in (("--json", args.json), ("--csv", args.csv)):
-        if path:
-            check_output_file(path, option)
+    check_outputs(evaluate_inputs(args), [("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
     image_options.require_camera(args.methods + (args.train or []), args)
     try:
         evaluation = evaluate_folder(
@@ -139,9 +148,9 @@ def run_evaluate(args) -> int:
         print(evaluation.check.message())
     print(evaluation.tables(), flush=True)
     if args.json:
-        write(args.json, json.dumps(evaluation.report(), indent=1))
+        write(args.json, json.dumps(evaluation.report(), indent=1), overwrite=args.overwrite)
     if args.csv:
-        write(args.csv, evaluation.csv())
+        write(args.csv, evaluation.csv(), overwrite=args.overwrite)
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     raise_failures(evaluation.failures, evaluation.total)
     return 0

@@ -53,7 +53,30 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="accept 8-bit files as linear data (they are refused otherwise)",
     )
+    max_pixels_argument(parser)
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def positive_int(text: str) -> int:
+    """A positive integer (an argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def max_pixels_argument(parser: argparse.ArgumentParser) -> None:
+    """``--max-pixels``: the pixel budget checked from each image's header (:data:`ccjax.io.reading.MAX_PIXELS`)."""
+    parser.add_argument(
+        "--max-pixels",
+        type=positive_int,
+        default=100_000_000,
+        help="refuse (as a failed file) an image whose header claims more pixels than this, before anything "
+        "is allocated for it (default: %(default)s, 100 MP)",
+    )
 
 
 def read_options(args) -> dict:
@@ -62,6 +85,7 @@ def read_options(args) -> dict:
         "black_level": args.black_level,
         "saturation": args.saturation,
         "assume_linear": args.assume_linear,
+        "max_pixels": args.max_pixels,
     }
 
 

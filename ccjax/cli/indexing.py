@@ -6,7 +6,7 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import check_output_file, label_list, world_arguments, write
+from ccjax.cli.common import check_outputs, label_list, overwrite_argument, world_arguments, write
 from ccjax.cli.image_options import check_labels, image_world
 
 DEFAULT_INDEXING_METHODS = [
@@ -81,6 +81,7 @@ def add_indexing(sub) -> None:
         help="preprocessing for surface-list methods (default: %(default)s)",
     )
     p.add_argument("--json", default=None, help="write the table as JSON ('-' for stdout)")
+    overwrite_argument(p)
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run_indexing)
 
@@ -93,8 +94,7 @@ def run_indexing(args) -> int:
     from ccjax.preprocessing import as_preprocessing
 
     # Everything the run needs is checked before the world is built (issue 17 item 7).
-    if args.json:
-        check_output_file(args.json, "--json")
+    check_outputs([], [("--json", args.json)], overwrite=args.overwrite)
     check_labels([label for label in args.methods or [] if label != "ACTUAL"])
     as_preprocessing(args.preprocessing)
     for option in ("objects", "surfaces", "lights", "size"):
@@ -130,6 +130,7 @@ def run_indexing(args) -> int:
                 },
                 indent=1,
             ),
+            overwrite=args.overwrite,
         )
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0

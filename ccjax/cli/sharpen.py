@@ -6,7 +6,7 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import build_world, check_plot, world_arguments, write_plot
+from ccjax.cli.common import build_world, check_outputs, check_plot, overwrite_argument, world_arguments, write_plot
 
 
 def add_sharpen(sub) -> None:
@@ -43,6 +43,7 @@ def add_sharpen(sub) -> None:
         default=None,
         help="write a PNG of the original and sharpened sensor curves",
     )
+    overwrite_argument(p, "--plot file")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument(
         "--rank-cameras",
@@ -104,6 +105,7 @@ def run_sharpen(args) -> int:
     from ccjax import sharpening
     from ccjax.experiments import chapter5_report
 
+    check_outputs([], [("--plot", args.plot)], overwrite=args.overwrite)
     check_plot(args.plot)
     if args.rank_cameras:
         if args.plot:
@@ -159,7 +161,11 @@ def run_sharpen(args) -> int:
         print(f"  ACTUAL         none / T      {info['actual_unsharpened']:8.3f} / {info['actual_sharpened']:8.3f}")
     if args.plot:
         title = f"{world.camera.name}: {args.method} sharpening"
-        write_plot(args.plot, lambda file: chapter5_report.plot_sensors(world, transform, file, title=title))
+        write_plot(
+            args.plot,
+            lambda file: chapter5_report.plot_sensors(world, transform, file, title=title),
+            overwrite=args.overwrite,
+        )
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0
 

@@ -7,12 +7,16 @@ import time
 
 from ccjax.cli.common import (
     build_world,
+    check_outputs,
+    check_plot,
     int_list,
     item_mesh_if_distributed,
     label_list,
+    overwrite_argument,
     start_processes,
     world_arguments,
     write_outputs,
+    write_plot,
 )
 
 DEFAULT_COMPARE_METHODS = [
@@ -85,6 +89,7 @@ def add_compare(sub) -> None:
         help="compute every (method, surface count) cell again instead of reading it from the cache of "
         "sweeps (fits still come from the cache of fits)",
     )
+    overwrite_argument(p, "--plot, --json and --csv files")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.set_defaults(func=run_compare)
 
@@ -95,6 +100,8 @@ def run_compare(args) -> int:
     from ccjax import _cache, experiments
 
     start = time.perf_counter()
+    check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
+    check_plot(args.plot)
     writer = start_processes()
     # Compiled programs go to <cache>/xla, so a second run skips compilation (as its fits are read
     # from <cache>/fits by the sweep).
@@ -132,8 +139,8 @@ def run_compare(args) -> int:
     # to find a feasible light shows (thesis §4.3.2), before its error does.
     print(result.status_table())
     if args.plot:
-        experiments.plot(result, args.plot, title=f"{world.name}: {args.scenes} scenes per point")
-        print(f"wrote {args.plot}", file=sys.stderr)
+        title = f"{world.name}: {args.scenes} scenes per point"
+        write_plot(args.plot, lambda file: experiments.plot(result, file, title=title), overwrite=args.overwrite)
     if args.json or args.csv:
         write_outputs(args, result.report(SUMMARIES))
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)

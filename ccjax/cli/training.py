@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import sys
 
-from ccjax.cli.common import build_world, start_processes, world_arguments
+from ccjax.cli.common import build_world, check_outputs, overwrite_argument, start_processes, world_arguments
+from ccjax.cli.image_options import max_pixels_argument
 
 NETS = ("NEURAL-NET", "SP-NEURAL-NET")
 
@@ -35,6 +36,8 @@ def add_train(sub) -> None:
     p.add_argument("--steps", type=int, default=None, help="nets only: optimiser steps (default: 3000)")
     p.add_argument("--specular", action="store_true", help="nets only: same as --method SP-NEURAL-NET")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    max_pixels_argument(p)
+    overwrite_argument(p, "--out model file and its .json record")
     world_arguments(p)
     p.set_defaults(func=run_train)
 
@@ -100,6 +103,7 @@ def run_train(args) -> int:
     registry.lookup(args.method)  # an unknown label fails before any image is read
     directory = Path(args.directory)
     truth = Path(args.ground_truth) if args.ground_truth else directory / "groundtruth.csv"
+    check_outputs(train_inputs(directory, truth), train_outputs(args.out), overwrite=args.overwrite)
     changes = {
         name: value
         for name, value in (
@@ -123,6 +127,8 @@ def run_train(args) -> int:
         schedule=schedule,
         out=args.out,
         progress=not args.no_progress,
+        max_pixels=args.max_pixels,
+        overwrite=args.overwrite,
     )
     del model
     if folds is not None:
@@ -136,6 +142,23 @@ def run_train(args) -> int:
     if args.out:
         print(f"saved {args.out}")
     return 0
+
+
+def train_inputs(directory, truth) -> list:
+    """Every file ``ccjax train`` reads from: the ground truth and the folder's images."""
+    from ccjax import io
+
+    return [truth, *(io.list_images([directory]) if directory.is_dir() else [])]
+
+
+def train_outputs(out) -> list[tuple[str, object]]:
+    """``ccjax train``'s outputs: the ``--out`` model file and the JSON record written beside it
+    (:func:`ccjax.training.save_trained`)."""
+    if out is None:
+        return []
+    from pathlib import Path
+
+    return [("--out", out), ("--out", Path(out).with_suffix(".json"))]
 
 
 COMMANDS = [add_train, add_train_net]

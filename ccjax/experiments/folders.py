@@ -23,6 +23,7 @@ import numpy as np
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.experiments.cameras import CurveCheck, curve_check
 from ccjax.experiments.evaluation import ImageResults, fold_worlds
+from ccjax.io.reading import MAX_PIXELS
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, resolve
 from ccjax.world import World
 
@@ -345,6 +346,7 @@ def evaluate_folder(
     check_camera: bool = False,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
+    max_pixels: int | None = MAX_PIXELS,
 ) -> FolderEvaluation:
     """Run methods on every image a ground-truth CSV lists and score them (angular error).
 
@@ -374,6 +376,8 @@ def evaluate_folder(
             (:func:`ccjax.experiments.cameras.curve_check`) even when no method is world-based.
         progress: progress bars on stderr.
         log: called with a line for each warning and training step (e.g. ``print`` to stderr).
+        max_pixels: the pixel budget: a file whose header claims more pixels is refused (a
+            failure record) before anything is allocated for it (default 100 MP; None: no limit).
 
     Returns:
         :class:`FolderEvaluation`.
@@ -411,7 +415,7 @@ def evaluate_folder(
     order = sorted(range(len(pairs)), key=lambda index: str(pairs[index][0]))
     pairs, names = [pairs[i] for i in order], [names[i] for i in order]
     paths, truth = [p for p, _ in pairs], np.stack([t for _, t in pairs])
-    source = image_folder(paths, masks=masks, read_options=read_options)
+    source = image_folder(paths, masks=masks, read_options=read_options, max_pixels=max_pixels)
     if not source.usable():
         raise_failures(list(source.failures.values()), len(paths))
     world = world if world is not None else store.world()

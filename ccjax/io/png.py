@@ -131,13 +131,15 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
         raise ValueError(f"corrupt or truncated PNG ({error})") from None
 
 
-def write_png(path: str | os.PathLike, pixels: np.ndarray) -> None:
+def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = True) -> None:
     """Write ``uint16`` or ``uint8`` ``(H, W, 3)`` as an RGB PNG, atomically
     (:func:`ccjax.io.writing.write_file`: readers never see a partial file).
 
     Arguments:
         path: the file (missing folders are created).
         pixels: the file codes; 16-bit values are stored big-endian, as PNG requires.
+        overwrite: replace a file already at ``path`` (else ``FileExistsError``:
+            :func:`ccjax.io.outputs.put_in_place`).
 
     Raises:
         ValueError: ``pixels`` is not ``uint8``/``uint16`` ``(H, W, 3)`` with at least one pixel.
@@ -149,4 +151,5 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray) -> None:
         raise ValueError(f"pixels: a PNG needs at least one pixel, got shape {pixels.shape}")
     from ccjax.io.writing import write_file  # (writing imports this module)
 
-    write_file(path, bytes(imagecodecs.png_encode(np.ascontiguousarray(pixels), level=COMPRESSION_LEVEL)))
+    blob = bytes(imagecodecs.png_encode(np.ascontiguousarray(pixels), level=COMPRESSION_LEVEL))
+    write_file(path, blob, overwrite=overwrite)

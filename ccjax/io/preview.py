@@ -79,6 +79,18 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
     return np.round(encoded * 255).astype(np.uint8)
 
 
-def write_preview(path: str | os.PathLike, rgb: ArrayLike, matrix: np.ndarray | None = None) -> None:
-    """Write :func:`srgb_preview` of ``rgb`` as an 8-bit PNG."""
-    write_png(path, srgb_preview(rgb, matrix))
+def write_preview(
+    path: str | os.PathLike, rgb: ArrayLike, matrix: np.ndarray | None = None, *, overwrite: bool = True
+) -> None:
+    """Write :func:`srgb_preview` of ``rgb`` as an 8-bit PNG (:func:`ccjax.io.write_png`).
+
+    Arguments:
+        path: the ``.png`` file.
+        rgb: ``(H, W, 3)`` unit-scale camera RGB.
+        matrix: camera RGB to linear sRGB (:func:`srgb_preview`).
+        overwrite: replace a file already at ``path``.
+
+    Returns:
+        None.
+    """
+    write_png(path, srgb_preview(rgb, matrix), overwrite=overwrite)

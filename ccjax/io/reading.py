@@ -43,6 +43,11 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *RAW_SUFFIXES)
 CLIP_FRACTION = 0.98
 """Default clip level as a fraction of the saturation level (module docstring)."""
 
+MAX_PIXELS = 100_000_000
+"""Default pixel budget of :func:`probe_image` and :func:`read_image` (100 MP): a 48 MP camera
+image passes, a file whose header claims more is refused before anything is allocated for it (a
+74-byte PNG can claim 100000 x 100000 pixels; decoding it would need 60 GB)."""
+
 
 @dataclass(frozen=True)
 class LinearImage:
@@ -101,6 +106,8 @@ _UNSUPPORTED_PHOTOMETRIC = ("SEPARATED", "CIELAB", "ICCLAB", "ITULAB", "LOGL", "
 
 def _tiff_layout(tif) -> tuple[tuple[int, ...], np.dtype]:
     """Shape (channels last) and sample type of a TIFF's first series, from its tags alone."""
+    if len(tif.series) > 1:
+        raise ValueError(f"the TIFF holds {len(tif.series)} images (pages); give a file with one image")
     series = tif.series[0]
     photometric = getattr(tif.pages[0].photometric, "name", str(tif.pages[0].photometric))
     if photometric in _UNSUPPORTED_PHOTOMETRIC:
@@ -145,6 +152,58 @@ def _check_layout(path: Path, shape: tuple[int, ...], dtype: np.dtype, assume_li
     return 8 * dtype.itemsize
 
 
+def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape (channels last) and sample type of a PNG, TIFF or raw file from its header alone."""
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        header = png_header(path)
+        dtype = np.dtype(np.uint16 if header.bit_depth == 16 else np.uint8)
+        return (header.height, header.width) + ((header.channels,) if header.channels > 1 else ()), dtype
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        with tifffile.TiffFile(path) as tif:
+            return _tiff_layout(tif)
+    if suffix in RAW_SUFFIXES:
+        try:
+            import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
+        except ImportError:
+            raise ValueError(f"{path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')") from None
+        with rawpy.imread(str(path)) as raw:
+            sizes = raw.sizes
+            return (sizes.height // 2, sizes.width // 2, 3), np.dtype(np.uint16)
+    raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
+
+
+def _check_file(path: Path, kind: str) -> None:
+    """Refuse a path that is not a regular file (missing, a folder, a device such as /dev/zero)."""
+    if not path.exists():
+        raise FileNotFoundError(f"{kind}: no such file: {path}")
+    if not path.is_file():
+        raise ValueError(f"{kind}: {path} is not a regular file")
+
+
+def check_pixels(path: str | os.PathLike, height: int, width: int, max_pixels: int | None) -> None:
+    """Refuse an image larger than the pixel budget, from its header's size.
+
+    Arguments:
+        path: the file (for the message).
+        height, width: the size its header gives.
+        max_pixels: the budget (None: no limit).
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: ``height * width > max_pixels``; the message names the file and ``--max-pixels``.
+    """
+    if max_pixels is not None and height * width > max_pixels:
+        raise ValueError(
+            f"image: {path} claims {width}x{height} pixels ({height * width / 1e6:.1f} MP), more than the pixel "
+            f"budget of {max_pixels / 1e6:g} MP (raise it with --max-pixels / max_pixels if the image is real)"
+        )
+
+
 @dataclass(frozen=True)
 class ImageInfo:
     """What :func:`probe_image` learns from a file's header.
@@ -170,57 +229,39 @@ def probe_image(
     black_level: float | int = 0.0,
     saturation: float | int | None = None,
     assume_linear: bool = False,
+    max_pixels: int | None = MAX_PIXELS,
 ) -> ImageInfo:
     """Check that :func:`read_image` can read a file, from its header alone (no pixel decoding).
 
-    Checks existence, file type, PNG signature and header CRC, TIFF tags (colour space, sample
-    type, layout), channels, size and bit depth; the pixel-value checks (NaN, every pixel
-    clipped, corrupt compressed data) need the pixels and remain with :func:`read_image`.
+    Checks that it is a regular file, its type, PNG signature and header CRC, TIFF tags (colour
+    space, sample type, layout, one image per file), channels, bit depth, and the size against
+    the pixel budget; the pixel-value checks (NaN, every pixel clipped, corrupt compressed data)
+    need the pixels and remain with :func:`read_image`.
 
     Arguments:
         path: the file.
-        black_level, saturation, assume_linear: as :func:`read_image` (so a command can pass
-            the same options to both); the saturation level must lie above the black level.
+        black_level, saturation, assume_linear, max_pixels: as :func:`read_image` (so a command
+            can pass the same options to both); the saturation level must lie above the black level.
 
     Returns:
         An :class:`ImageInfo`.
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: what :func:`read_image` would refuse from the header; the message names the file.
+        ValueError: what :func:`read_image` would refuse from the header (a size over
+            ``max_pixels`` too); the message names the file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image: no such file: {path}")
+    _check_file(path, "image")
     suffix = path.suffix.lower()
-    shape: tuple[int, ...]
     try:
-        if suffix == ".png":
-            header = png_header(path)
-            dtype = np.dtype(np.uint16 if header.bit_depth == 16 else np.uint8)
-            shape = (header.height, header.width) + ((header.channels,) if header.channels > 1 else ())
-        elif suffix in (".tif", ".tiff"):
-            import tifffile
-
-            with tifffile.TiffFile(path) as tif:
-                shape, dtype = _tiff_layout(tif)
-        elif suffix in RAW_SUFFIXES:
-            try:
-                import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
-            except ImportError:
-                raise ValueError(
-                    f"{path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')"
-                ) from None
-            with rawpy.imread(str(path)) as raw:
-                sizes = raw.sizes
-                shape, dtype = (sizes.height // 2, sizes.width // 2, 3), np.dtype(np.uint16)
-        else:
-            raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
+        shape, dtype = _header_layout(path)
     except ValueError as error:
         raise ValueError(f"image: cannot read {path}: {error}") from None
     except Exception as error:  # a decoder's own exception types: report them the same way
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
     bit_depth = _check_layout(path, shape, dtype, assume_linear)
+    check_pixels(path, shape[0], shape[1], max_pixels)
     if suffix in RAW_SUFFIXES:
         black_level, full_scale = 0.0, 65535.0  # LibRaw's scale (see read_image)
     else:
@@ -237,6 +278,7 @@ def read_image(
     black_level: float | int = 0.0,
     saturation: float | int | None = None,
     assume_linear: bool = False,
+    max_pixels: int | None = MAX_PIXELS,
 ) -> LinearImage:
     """Read a linear image (16-bit PNG, TIFF, or camera raw with the ``raw`` extra).
 
@@ -249,18 +291,22 @@ def read_image(
             white level for raw). Given, pixels with any channel at or above it are clipped;
             by default those with any channel at or above :data:`CLIP_FRACTION` (0.98) of it.
         assume_linear: accept 8-bit files as linear data (otherwise they are refused).
+        max_pixels: the pixel budget: a file whose header claims more pixels is refused before
+            its pixels are decoded (default :data:`MAX_PIXELS`, 100 MP; None: no limit).
 
     Returns:
         A :class:`LinearImage`.
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: unreadable, not RGB, empty, 8-bit without ``assume_linear``, or every pixel
-            clipped; the message names the file.
+        ValueError: unreadable, not RGB, empty, over the pixel budget, 8-bit without
+            ``assume_linear``, or every pixel clipped; the message names the file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image: no such file: {path}")
+    # The header first: nothing is decoded (or allocated) for a file it refuses.
+    probe_image(
+        path, black_level=black_level, saturation=saturation, assume_linear=assume_linear, max_pixels=max_pixels
+    )
     default_saturation = None
     try:
         if path.suffix.lower() in RAW_SUFFIXES:
@@ -334,14 +380,25 @@ def read_mask(path: str | os.PathLike, shape: tuple[int, ...]) -> np.ndarray:
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: unreadable, not PNG/TIFF, or its size differs from ``shape``; the message
-            names the file.
+        ValueError: unreadable, not PNG/TIFF, not a regular file, or its size differs from
+            ``shape`` (checked from the header, before decoding); the message names the file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"mask: no such file: {path}")
+    _check_file(path, "mask")
     if path.suffix.lower() not in MASK_SUFFIXES:
         raise ValueError(f"mask: {path}: unsupported file type {path.suffix!r}; expected .png, .tif or .tiff")
+    want = tuple(int(n) for n in shape[:2])
+    try:
+        size = _header_layout(path)[0][:2]
+    except ValueError as error:
+        raise ValueError(f"mask: cannot read {path}: {error}") from None
+    except Exception as error:  # a decoder's own exception types: report them the same way
+        raise ValueError(f"mask: cannot read {path}: {type(error).__name__}: {error}") from None
+    # The size from the header first: a mask that cannot fit its image is never decoded.
+    if tuple(size) != want:
+        raise ValueError(
+            f"mask: {path} is {size[1]}x{size[0]} pixels (width x height), but its image is {want[1]}x{want[0]}"
+        )
     try:
         pixels = _read_pixels(path)
     except ValueError as error:
@@ -352,12 +409,6 @@ def read_mask(path: str | os.PathLike, shape: tuple[int, ...]) -> np.ndarray:
         pixels = pixels[..., : pixels.shape[2] - 1]  # drop alpha
     if pixels.ndim not in (2, 3) or (pixels.ndim == 3 and pixels.shape[2] not in (1, 3)):
         raise ValueError(f"mask: {path} has shape {pixels.shape}; expected greyscale (H, W) or RGB (H, W, 3)")
-    want = tuple(int(n) for n in shape[:2])
-    if pixels.shape[:2] != want:
-        raise ValueError(
-            f"mask: {path} is {pixels.shape[1]}x{pixels.shape[0]} pixels (width x height), but its image is "
-            f"{want[1]}x{want[0]}"
-        )
     usable = pixels != 0
     return usable.any(axis=-1) if usable.ndim == 3 else usable
 

@@ -29,20 +29,7 @@ def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
     return np.round(np.clip(np.asarray(rgb, np.float64), 0.0, 1.0) * levels).astype(dtype)
 
 
-def path_key(path: str | os.PathLike) -> str:
-    """A comparison key for ``path``: absolute, symbolic links resolved, case folded (two outputs
-    differing only in case would overwrite each other on case-insensitive file systems).
-
-    Arguments:
-        path: any path.
-
-    Returns:
-        The key.
-    """
-    return str(Path(path).resolve()).casefold()
-
-
-def write_file(path: str | os.PathLike, data: bytes | str) -> None:
+def write_file(path: str | os.PathLike, data: bytes | str, *, overwrite: bool = True) -> None:
     """Write ``data`` to ``path`` atomically: through a temporary file in the same folder renamed into
     place, so an interrupted write never leaves a partial file under ``path`` and an old file is only
     replaced once the new one is complete. Ctrl-C during the write is held until the file is in
@@ -52,13 +39,15 @@ def write_file(path: str | os.PathLike, data: bytes | str) -> None:
     Arguments:
         path: the file (missing folders are created).
         data: the contents; text is encoded as UTF-8.
+        overwrite: replace a file already at ``path`` (else ``FileExistsError``:
+            :func:`ccjax.io.outputs.put_in_place`).
 
     Returns:
         None.
     """
     blob = data.encode("utf-8") if isinstance(data, str) else bytes(data)
     with interrupts_held():
-        atomic_write(Path(path), blob)
+        atomic_write(Path(path), blob, replace=overwrite)
 
 
 def write_figure(figure, path, **options) -> None:
@@ -88,13 +77,15 @@ def write_figure(figure, path, **options) -> None:
     write_file(path, buffer.getvalue())
 
 
-def write_linear(path: str | os.PathLike, rgb: ArrayLike) -> None:
+def write_linear(path: str | os.PathLike, rgb: ArrayLike, *, overwrite: bool = True) -> None:
     """Write a unit-scale linear image ``(H, W, 3)`` as 16-bit PNG or TIFF (by suffix), atomically
     (:func:`write_file`); values clamp to [0, 1].
 
     Arguments:
         path: ``.png``, ``.tif`` or ``.tiff`` file.
         rgb: ``(H, W, 3)`` unit-scale linear RGB.
+        overwrite: replace a file already at ``path`` (else ``FileExistsError``:
+            :func:`ccjax.io.outputs.put_in_place`).
 
     Returns:
         None.
@@ -107,13 +98,13 @@ def write_linear(path: str | os.PathLike, rgb: ArrayLike) -> None:
         raise ValueError(f"output: {path} must end in .png, .tif or .tiff")
     codes = quantise(rgb)
     if path.suffix.lower() == ".png":
-        write_png(path, codes)
+        write_png(path, codes, overwrite=overwrite)
     else:
         import tifffile
 
         buffer = io.BytesIO()
         tifffile.imwrite(buffer, codes, photometric="rgb")
-        write_file(path, buffer.getvalue())
+        write_file(path, buffer.getvalue(), overwrite=overwrite)
 
 
 def write_dataset(

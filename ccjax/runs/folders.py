@@ -16,8 +16,8 @@ import numpy as np
 
 from ccjax import io
 from ccjax.estimators.base import AbstractEstimator, Estimate
-from ccjax.io.reading import LinearImage
-from ccjax.io.writing import path_key
+from ccjax.io.outputs import path_key
+from ccjax.io.reading import MAX_PIXELS, LinearImage
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing
 from ccjax.runs.images import ImageRun, run_models
 from ccjax.runs.sources import ImageFolder, Images, image_folder
@@ -27,12 +27,12 @@ OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 """Suffixes of corrected images (16-bit PNG or TIFF); other inputs (raw files) are written as ``.tiff``."""
 
 
-def _source(images: Images | ImageFolder, masks, read_options: dict | None) -> ImageFolder:
+def _source(images: Images | ImageFolder, masks, read_options: dict | None, max_pixels: int | None) -> ImageFolder:
     if isinstance(images, ImageFolder):
-        if masks is not None or read_options is not None:
-            raise ValueError("masks, read_options: an ImageFolder has its own; give them to image_folder")
+        if masks is not None or read_options is not None or max_pixels != MAX_PIXELS:
+            raise ValueError("masks, read_options, max_pixels: an ImageFolder has its own; give them to image_folder")
         return images
-    return image_folder(images, masks=masks, read_options=read_options)
+    return image_folder(images, masks=masks, read_options=read_options, max_pixels=max_pixels)
 
 
 def fitted(method: str | AbstractEstimator, world: World | None = None) -> tuple[str, AbstractEstimator]:
@@ -68,6 +68,7 @@ def estimate_folder(
     read_options: dict | None = None,
     masks: str | os.PathLike | Sequence[str | os.PathLike | None] | None = None,
     progress: bool = False,
+    max_pixels: int | None = MAX_PIXELS,
 ) -> ImageRun:
     """Estimate the light of every image of a folder.
 
@@ -83,12 +84,14 @@ def estimate_folder(
         read_options: keyword arguments of :func:`ccjax.io.read_image` (black level, saturation, ...).
         masks: a folder of masks named by the images' stems, or one mask file (or None) per image.
         progress: show a progress bar on stderr.
+        max_pixels: the pixel budget: a file whose header claims more pixels is refused (a
+            failure record) before anything is allocated for it (default 100 MP; None: no limit).
 
     Returns:
         The :class:`~ccjax.runs.images.ImageRun`: per image its estimate, ok and status
         (``done`` False and a failure record for the files that could not be used).
     """
-    source = _source(images, masks, read_options)
+    source = _source(images, masks, read_options, max_pixels)
     label, model = fitted(method, world)
     return run_models(source, {label: [model]}, preprocessing=preprocessing, dark=dark, progress=progress)
 
@@ -138,12 +141,17 @@ def correct_folder(
     masks: str | os.PathLike | Sequence[str | os.PathLike | None] | None = None,
     progress: bool = False,
     each: Callable[[int, Estimate, Path, Path], None] | None = None,
+    max_pixels: int | None = MAX_PIXELS,
+    overwrite: bool = True,
 ) -> ImageRun:
     """Estimate each image's light and write it corrected to the canonical light (a diagonal map,
     or a sharpened-diagonal one) as a linear 16-bit image and an 8-bit sRGB preview.
 
-    Every file is written atomically (a temporary name renamed into place); existing files are
-    replaced, so a caller that must not replace them checks first.
+    Every file is written atomically (a temporary name put in place,
+    :func:`ccjax.io.outputs.put_in_place`); existing files are replaced unless ``overwrite`` is
+    False (then a file found at an output's name is kept and that image fails with
+    ``FileExistsError``), so a caller that must not replace them checks first
+    (:func:`ccjax.io.outputs.check_outputs`) and passes False.
 
     Arguments:
         images: a folder, a file, a list of them, or an :class:`~ccjax.runs.sources.ImageFolder`.
@@ -154,9 +162,10 @@ def correct_folder(
         world: the world (default :func:`ccjax.runs.store.world`): labels are fitted to it, its
             canonical light is the target and its camera gives the preview colours.
         sharpening: optional invertible ``(3, 3)`` sharpening transform (:func:`ccjax.correction.correct`).
-        preprocessing, dark, read_options, masks, progress: as :func:`estimate_folder`.
+        preprocessing, dark, read_options, masks, progress, max_pixels: as :func:`estimate_folder`.
         each: called after each image is written with ``(index in the source, estimate, output,
             preview)``.
+        overwrite: replace files already at the outputs' names.
 
     Returns:
         The :class:`~ccjax.runs.images.ImageRun`.
@@ -167,7 +176,7 @@ def correct_folder(
     from ccjax import correction
     from ccjax.runs import store
 
-    source = _source(images, masks, read_options)
+    source = _source(images, masks, read_options, max_pixels)
     world = world if world is not None else store.world()
     label, model = fitted(method, world)
     if isinstance(outputs, (str, os.PathLike)):
@@ -187,8 +196,13 @@ def correct_folder(
     def write(index: int, image: LinearImage, estimates: dict[str, Estimate]) -> None:
         estimate = estimates[label]
         corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening))
-        io.write_linear(written[index], corrected)
-        io.write_preview(shown[index], corrected, matrix)
+        io.write_linear(written[index], corrected, overwrite=overwrite)
+        try:
+            io.write_preview(shown[index], corrected, matrix, overwrite=overwrite)
+        except BaseException:
+            # An output without its preview (a full disk) would make a rerun refuse the output.
+            written[index].unlink(missing_ok=True)
+            raise
         if each is not None:
             each(index, estimate, written[index], shown[index])
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ccjax import io
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.io.reading import LinearImage
+from ccjax.io.reading import MAX_PIXELS, LinearImage
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, as_preprocessing, prepare_input, resolve
 
 MASK_SUFFIXES = (".png", ".tif", ".tiff")
@@ -263,6 +263,7 @@ def image_folder(
     read_options: dict | None = None,
     keep_going: bool = True,
     mask_argument: str = "masks",
+    max_pixels: int | None = MAX_PIXELS,
 ) -> ImageFolder:
     """List the image files once and probe every header once (:func:`ccjax.io.probe_image`).
 
@@ -275,6 +276,9 @@ def image_folder(
         keep_going: record a file whose header is bad in :attr:`ImageFolder.failures` and go on;
             otherwise its error is raised.
         mask_argument: the name the mask errors give ``masks``.
+        max_pixels: the pixel budget (:func:`ccjax.io.probe_image`): a file whose header claims
+            more pixels is a failure record like any bad header, and nothing is allocated for it
+            (a ``max_pixels`` in ``read_options`` wins; None: no limit).
 
     Returns:
         The :class:`ImageFolder`.
@@ -291,7 +295,7 @@ def image_folder(
         mask_list = [None if mask is None else Path(mask) for mask in masks]
         if len(mask_list) != len(paths):
             raise ValueError(f"{mask_argument}: expected one entry per image ({len(paths)}), got {len(mask_list)}")
-    source = ImageFolder(paths, mask_list, dict(read_options or {}))
+    source = ImageFolder(paths, mask_list, {"max_pixels": max_pixels} | dict(read_options or {}))
     for path in paths:
         try:
             info = io.probe_image(path, **source.read_options)

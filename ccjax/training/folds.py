@@ -14,6 +14,7 @@ from ccjax._cache import FORMAT_VERSION, read_model_metadata, save_model
 from ccjax._cache import load_model as load_leaves
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
+from ccjax.io.reading import MAX_PIXELS
 from ccjax.training.data import Examples, read_examples
 from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples
 
@@ -185,9 +186,17 @@ def save_trained(
     world_seed: int = 0,
     schedule: Schedule | None = None,
     log: TrainingLog | None = None,
+    overwrite: bool = True,
 ) -> Path:
     """Write a trained model: its leaves and a JSON record (format version, label, the camera and
     world seed its start was fitted to, the schedule and training log).
+
+    Arguments:
+        path: the model file; the record goes beside it (``path.with_suffix(".json")``).
+        model: the trained estimator.
+        label, camera, world_seed: what rebuilds its skeleton (:func:`load_model`).
+        schedule, log: the training, for the record.
+        overwrite: replace existing files (else ``FileExistsError``).
 
     Returns:
         The model file's path.
@@ -200,7 +209,7 @@ def save_trained(
         "schedule": asdict(schedule) if schedule is not None else None,
         "log": log.as_dict() if log is not None else None,
     }
-    return save_model(Path(path), model, metadata)
+    return save_model(Path(path), model, metadata, replace=overwrite)
 
 
 def load_model(path: str | os.PathLike) -> AbstractEstimator:
@@ -240,6 +249,8 @@ def train_on_images(
     schedule: Schedule | None = None,
     out: str | os.PathLike | None = None,
     progress: bool = True,
+    max_pixels: int | None = MAX_PIXELS,
+    overwrite: bool = True,
 ) -> tuple[AbstractEstimator, TrainingLog, CrossValidation | None]:
     """Train the estimator ``method`` on a folder of images with ground truth.
 
@@ -260,6 +271,8 @@ def train_on_images(
         schedule: training schedule (default :class:`Schedule`).
         out: where to save the final model (``None``: not saved).
         progress: progress bars.
+        max_pixels: the pixel budget of the image headers (default 100 MP; None: no limit).
+        overwrite: replace an existing ``out`` (and its record).
 
     Returns:
         ``(trained model, its TrainingLog, CrossValidation or None)``.
@@ -273,7 +286,12 @@ def train_on_images(
     pairs = match_ground_truth(table.lights, directory)
     lights = np.stack([light for _, light in pairs])
     examples, failures = read_examples(
-        [path for path, _ in pairs], lights, list(table.lights), start, progress=progress
+        [path for path, _ in pairs],
+        lights,
+        list(table.lights),
+        start,
+        progress=progress,
+        read_options={"max_pixels": max_pixels},
     )
     if failures:
         raise ValueError(f"{len(failures)} images cannot be used for training:\n  " + "\n  ".join(failures.values()))
@@ -283,5 +301,14 @@ def train_on_images(
         validation, _ = cross_validate(start, examples, assignment, schedule, method=method, progress=progress)
     model, log = fit_to_examples(start, examples, schedule, progress=progress)
     if out is not None:
-        save_trained(out, model, label=method, camera=camera, world_seed=world_seed, schedule=schedule, log=log)
+        save_trained(
+            out,
+            model,
+            label=method,
+            camera=camera,
+            world_seed=world_seed,
+            schedule=schedule,
+            log=log,
+            overwrite=overwrite,
+        )
     return model, log, validation
