@@ -4,7 +4,6 @@ anything is allocated (a bad header is one file's failure, the run goes on), opt
 
 from __future__ import annotations
 
-import json
 import struct
 import zlib
 
