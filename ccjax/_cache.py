@@ -18,7 +18,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, BinaryIO, TypeVar
 
 import equinox as eqx
 import jax
@@ -117,19 +117,24 @@ def content_key(kind: str, *parts: Any) -> str:
     return digest.hexdigest()[:24]
 
 
-def atomic_write(path: Path, blob: bytes, *, replace: bool = True) -> None:
+def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], None], *, replace: bool = True) -> None:
     """Write ``blob`` to ``path`` through a temporary file in the same folder put in place
     (:func:`ccjax.io.outputs.put_in_place`), so readers never see a partial file; the file gets
     the usual permissions (umask). Without ``replace`` an existing ``path`` is kept
-    (``FileExistsError``)."""
+    (``FileExistsError``). ``blob`` may be a function that writes to the open binary file."""
     from ccjax.io.outputs import put_in_place
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     try:
-        with os.fdopen(descriptor, "wb") as handle:
-            handle.write(blob)
+        os.close(descriptor)
+        # Opened by name: writers such as tifffile ask the file object for its path.
+        with open(temporary, "wb") as handle:
+            if callable(blob):
+                blob(handle)
+            else:
+                handle.write(blob)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)  # mkstemp's 0600 is for the temporary name only

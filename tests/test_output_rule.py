@@ -186,14 +186,14 @@ def test_correct_keeps_an_output_that_appears_after_its_check(setup, monkeypatch
 def test_a_full_disk_names_the_file_and_leaves_no_output_without_its_preview(setup, monkeypatch, capsys):
     writing.write_linear(setup / "in.png", np.full((6, 6, 3), 0.4))
     # The preview's bytes do not fit on the disk (the error has no file name, as ENOSPC from write()).
-    monkeypatch.setattr(os, "fdopen", _full_disk_fdopen(setup / "out_preview.png"))
+    monkeypatch.setattr("builtins.open", _full_disk_open(setup / "out_preview.png"))
     assert cli.main(["correct", str(setup / "in.png"), str(setup / "out.tif"), "--method", "GW", "--no-progress"]) == 2
     _refused(capsys, "No space left on device", "out_preview.png")
     assert not (setup / "out.tif").exists() and not (setup / "out_preview.png").exists()
 
 
-def _full_disk_fdopen(victim):
-    real = os.fdopen
+def _full_disk_open(victim):
+    real = open
 
     class Full:
         def __init__(self, handle):
@@ -209,9 +209,8 @@ def _full_disk_fdopen(victim):
         def write(self, blob):
             raise OSError(28, "No space left on device")
 
-    def fdopen(descriptor, mode="r", *args, **kwargs):
-        handle = real(descriptor, mode, *args, **kwargs)
-        name = os.readlink(f"/proc/self/fd/{descriptor}") if os.path.exists("/proc/self/fd") else ""
-        return Full(handle) if os.path.basename(name).startswith(f".{victim.name}.") else handle
+    def opened(file, mode="r", *args, **kwargs):
+        handle = real(file, mode, *args, **kwargs)
+        return Full(handle) if "w" in mode and os.path.basename(str(file)).startswith(f".{victim.name}.") else handle
 
-    return fdopen
+    return opened

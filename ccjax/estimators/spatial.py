@@ -39,6 +39,7 @@ from jaxtyping import Array, Bool, Float
 from ccjax.estimators.base import AbstractImageEstimator, AbstractUnblockedEstimator, Estimate, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
+from ccjax.estimators.tiles import map_row_tiles, tile_rows
 from ccjax.world import World
 
 # SciPy's gaussian_filter truncates its kernels at 4 sigma; using the same taps makes the filter
@@ -151,6 +152,34 @@ def valid_positions(mask: Bool[Array, "H W"], radius: int) -> Bool[Array, "H W"]
     return mask
 
 
+def _minkowski_parts(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: Float[Array, ""]):
+    """What :func:`minkowski_mean` needs of one tile: the per-channel maxima of the valid values,
+    the scale the powers were taken at (the largest maximum, or 1 when that is not a normal
+    float), the sums of ``(values / scale)^p`` and the count of valid positions."""
+    weights = valid[None]
+    maximum = jnp.max(jnp.where(weights, values, 0.0), axis=(1, 2))
+    finite_p = jnp.where(jnp.isinf(p), 1.0, p)  # the finite branch must stay finite (and its gradient)
+    # Divide by the peak first so values^p neither overflows nor underflows for large p.
+    peak = jax.lax.stop_gradient(jnp.max(maximum))
+    # Scale-free: any normal float is a usable peak (its reciprocal is finite), so an image scaled
+    # by 1e-12 is still estimated.
+    scale = jnp.where(peak > jnp.finfo(peak.dtype).tiny, peak, 1.0)
+    scaled = jnp.where(weights, values / scale, 0.0)
+    positive_scaled = weights & (scaled > 0)
+    powered = jnp.where(positive_scaled, jnp.where(positive_scaled, scaled, 1.0) ** finite_p, 0.0)
+    return maximum, scale, jnp.sum(powered, axis=(1, 2)), jnp.sum(valid, dtype=jnp.int32)
+
+
+def _minkowski_norm(maximum, scale, total, count, p: Float[Array, ""]) -> Float[Array, "3"]:
+    """``(total / count)^(1/p) * scale`` (the maximum for ``p = inf``)."""
+    infinite = jnp.isinf(p)
+    finite_p = jnp.where(infinite, 1.0, p)
+    mean = total / jnp.maximum(count, 1).astype(total.dtype)
+    positive = mean > 0
+    norm = scale * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / finite_p), 0.0)
+    return jnp.where(infinite, maximum, norm)
+
+
 def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: Float[Array, ""]) -> Float[Array, "3"]:
     """``(mean over valid of values^p)^(1/p)`` per channel plane (non-negative values; ``p = inf``:
     the maximum). ``p`` is an array, so it can be traced and learned.
@@ -163,24 +192,63 @@ def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: 
     Returns:
         ``(3,)`` the norms.
     """
-    weights = valid[None]
     p = jnp.asarray(p, values.dtype)
-    infinite = jnp.isinf(p)
-    maximum = jnp.max(jnp.where(weights, values, 0.0), axis=(1, 2))
-    finite_p = jnp.where(infinite, 1.0, p)  # the finite branch must stay finite (and its gradient)
-    count = jnp.maximum(jnp.sum(valid), 1)
-    # Divide by the peak first so values^p neither overflows nor underflows for large p.
-    peak = jax.lax.stop_gradient(jnp.max(maximum))
-    # Scale-free: any normal float is a usable peak (its reciprocal is finite), so an image scaled
-    # by 1e-12 is still estimated.
-    peak = jnp.where(peak > jnp.finfo(peak.dtype).tiny, peak, 1.0)
-    scaled = jnp.where(weights, values / peak, 0.0)
-    positive_scaled = weights & (scaled > 0)
-    powered = jnp.where(positive_scaled, jnp.where(positive_scaled, scaled, 1.0) ** finite_p, 0.0)
-    mean = jnp.sum(powered, axis=(1, 2)) / count.astype(powered.dtype)
-    positive = mean > 0
-    norm = peak * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / finite_p), 0.0)
-    return jnp.where(infinite, maximum, norm)
+    return _minkowski_norm(*_minkowski_parts(values, valid, p), p)
+
+
+def _filter_radius(order: int, sigma: float) -> int:
+    """Half-width of the derivative filters (rows a tile needs above and below its own)."""
+    return max(derivative_kernel(sigma, n).size // 2 for n in range(order + 1))
+
+
+def edge_norms(
+    image: Float[Array, "H W 3"],
+    mask: Bool[Array, "H W"],
+    order: int,
+    sigma: float,
+    p: Float[Array, ""],
+    *,
+    rows: int | None = None,
+) -> tuple[Float[Array, "3"], Bool[Array, ""], Float[Array, ""]]:
+    """The grey-edge estimate of the module docstring, in row tiles of ``rows`` image rows
+    (:func:`ccjax.estimators.tiles.map_row_tiles`; None: the whole image at once). A tile
+    gathers the filters' support above and below its rows, so each position's response is the
+    whole image's; the Minkowski sums of the tiles are combined at the largest tile scale, which
+    changes the estimate by float rounding only.
+
+    Arguments:
+        image: ``(H, W, 3)``.
+        mask: ``(H, W)`` usable pixels.
+        order, sigma: the derivative order and scale.
+        p: the Minkowski norm.
+        rows: image rows per tile, or None.
+
+    Returns:
+        ``(estimate (3,), any valid position, largest |masked pixel value|)``.
+    """
+    p = jnp.asarray(p, image.dtype)
+    radius = support_radius(order, sigma)
+    halo = max(radius, _filter_radius(order, sigma))
+
+    def parts(tile, usable, own, margin=halo):
+        # The tile's own rows lie ``margin`` rows inside it; the rest is the filters' support.
+        response = _planar_response(jnp.moveaxis(tile, -1, 0), order, sigma)[:, margin : margin + own.size]
+        valid = valid_positions(usable, radius)[margin : margin + own.size] & own[:, None]
+        own_pixels = usable[margin : margin + own.size] & own[:, None]
+        brightest = jnp.max(jnp.abs(jnp.where(own_pixels[..., None], tile[margin : margin + own.size], 0.0)))
+        return *_minkowski_parts(response, valid, p), brightest
+
+    if rows is None:
+        maximum, scale, total, count, brightest = parts(image, mask, jnp.ones(image.shape[0], bool), margin=0)
+        return _minkowski_norm(maximum, scale, total, count, p), count > 0, brightest
+    maxima, scales, totals, counts, brightest = map_row_tiles(parts, image, mask, rows=rows, halo=halo)
+    scale = jnp.max(scales)
+    finite_p = jnp.where(jnp.isinf(p), 1.0, p)
+    # Each tile's sums were taken at its own scale: bring them to the largest (ratios <= 1).
+    rescaled = jnp.where(totals > 0, totals * ((scales / scale) ** finite_p)[:, None], 0.0)
+    count = counts.sum()
+    estimate = _minkowski_norm(jnp.max(maxima, axis=0), scale, rescaled.sum(axis=0), count, p)
+    return estimate, count > 0, jnp.max(brightest)
 
 
 @typing.final
@@ -209,15 +277,15 @@ class GreyEdge(AbstractImageEstimator, AbstractUnblockedEstimator):
     pools_pixels: ClassVar[bool] = False
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
-        planes = jnp.moveaxis(image, -1, 0)  # channel-first: the layout XLA's CPU code filters fastest
-        response = _planar_response(planes, self.order, self.sigma)
-        valid = valid_positions(mask, support_radius(self.order, self.sigma))
-        estimate = minkowski_mean(response, valid, self.p)
+        # Camera-sized images in row tiles: the filters' intermediates are several image-sized
+        # arrays otherwise (4 GB at 48 MP).
+        rows = tile_rows(*mask.shape)
+        estimate, any_valid, brightest = edge_norms(image, mask, self.order, self.sigma, self.p, rows=rows)
         # Edges of a flat image are rounding noise, not zero: demand edges above float precision,
         # relative to the image's brightest value (scale-free; a black image has floor 0 and no
         # positive edge).
-        floor = _FLAT * jax.lax.stop_gradient(jnp.max(jnp.abs(jnp.where(mask[..., None], image, 0.0))))
-        usable = jnp.any(valid) & jnp.all(estimate > floor)
+        floor = _FLAT * jax.lax.stop_gradient(brightest)
+        usable = any_valid & jnp.all(estimate > floor)
         return with_fallback(estimate, usable, self.fallback)
 
 

@@ -20,6 +20,7 @@ from ccjax.io.png import write_png as write_png
 from ccjax.io.preview import preview_matrix as preview_matrix
 from ccjax.io.preview import preview_matrix_cached as preview_matrix_cached
 from ccjax.io.preview import srgb_preview as srgb_preview
+from ccjax.io.preview import srgb_preview_rows as srgb_preview_rows
 from ccjax.io.preview import write_preview as write_preview
 from ccjax.io.reading import CLIP_FRACTION as CLIP_FRACTION
 from ccjax.io.reading import IMAGE_SUFFIXES as IMAGE_SUFFIXES
@@ -31,5 +32,6 @@ from ccjax.io.reading import probe_image as probe_image
 from ccjax.io.reading import read_image as read_image
 from ccjax.io.reading import read_mask as read_mask
 from ccjax.io.writing import quantise as quantise
+from ccjax.io.writing import write_codes as write_codes
 from ccjax.io.writing import write_dataset as write_dataset
 from ccjax.io.writing import write_linear as write_linear

@@ -8,12 +8,14 @@ observer, D65) with the canonical white pinned to sRGB white, so a corrected ima
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ccjax._cache import cached_arrays, content_key
 from ccjax.io.png import write_png
+from ccjax.io.writing import row_slices
 
 _XYZ_TO_SRGB = np.array(
     [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
@@ -72,11 +74,42 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
     Returns:
         ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve).
     """
-    linear = np.asarray(rgb, np.float32) @ (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
-    scale = np.percentile(linear.max(axis=-1), percentile)
-    linear = np.clip(linear / max(float(scale), 1e-12), 0.0, 1.0)
-    encoded = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
-    return np.round(encoded * 255).astype(np.uint8)
+    rgb = np.asarray(rgb)
+    return srgb_preview_rows(lambda rows: rgb[rows], rgb.shape, matrix, percentile)
+
+
+def srgb_preview_rows(
+    rows_of: Callable[[slice], np.ndarray],
+    shape: tuple[int, ...],
+    matrix: np.ndarray | None = None,
+    percentile: float = 99.0,
+) -> np.ndarray:
+    """:func:`srgb_preview` of an image given a piece of rows at a time (two passes: the exposure
+    needs every pixel's brightest channel first), so a 48 MP image (or one computed piece by
+    piece, such as a corrected image) is never held in float copies of the whole.
+
+    Arguments:
+        rows_of: the image's rows ``rows`` (a slice of the first axis) as linear camera RGB.
+        shape: the image's shape ``(H, W, 3)``.
+        matrix: camera -> linear sRGB (:func:`preview_matrix`); identity if None.
+        percentile: exposure: this percentile of the brightest channel becomes 1.
+
+    Returns:
+        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve).
+    """
+    transform = (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
+    pieces = row_slices(tuple(shape))
+    brightest = np.empty(tuple(shape[:-1]), np.float32)
+    for rows in pieces:
+        brightest[rows] = (np.asarray(rows_of(rows), np.float32) @ transform).max(axis=-1)
+    scale = max(float(np.percentile(brightest, percentile)), 1e-12)
+    del brightest
+    encoded = np.empty(tuple(shape), np.uint8)
+    for rows in pieces:
+        linear = np.clip((np.asarray(rows_of(rows), np.float32) @ transform) / scale, 0.0, 1.0)
+        curve = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+        encoded[rows] = np.round(curve * 255)
+    return encoded
 
 
 def write_preview(

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -14,9 +16,29 @@ from ccjax._signals import interrupts_held
 from ccjax.io.ground_truth import write_ground_truth
 from ccjax.io.png import write_png
 
+CHUNK_VALUES = 1 << 22
+"""Values converted at a time by the writers (float64 working copies of about 32 MB)."""
+
+
+def row_slices(shape: tuple[int, ...], values: int = CHUNK_VALUES) -> list[slice]:
+    """Slices of the first axis of an array of ``shape`` holding about ``values`` values each, so
+    a 48 MP image is converted in pieces instead of in float64 copies of the whole.
+
+    Arguments:
+        shape: the array's shape (at least one axis).
+        values: values per piece.
+
+    Returns:
+        Slices covering ``range(shape[0])`` in order.
+    """
+    per_row = max(1, int(np.prod(shape[1:], dtype=np.int64)))
+    rows = max(1, values // per_row)
+    return [slice(start, min(start + rows, shape[0])) for start in range(0, shape[0], rows)]
+
 
 def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
-    """``rgb`` on the unit scale to integer file codes, clamped to ``[0, 1]`` first.
+    """``rgb`` on the unit scale to integer file codes, clamped to ``[0, 1]`` first (in pieces of
+    :func:`row_slices`: the float64 working copy never holds the whole image).
 
     Arguments:
         rgb: any shape, unit scale (1.0 = saturation).
@@ -26,10 +48,18 @@ def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
         The rounded codes.
     """
     dtype = np.uint16 if levels > 255 else np.uint8
-    return np.round(np.clip(np.asarray(rgb, np.float64), 0.0, 1.0) * levels).astype(dtype)
+    rgb = np.asarray(rgb)
+    if rgb.ndim == 0:
+        return np.round(np.clip(np.float64(rgb), 0.0, 1.0) * levels).astype(dtype)
+    codes = np.empty(rgb.shape, dtype)
+    for rows in row_slices(rgb.shape):
+        codes[rows] = np.round(np.clip(np.asarray(rgb[rows], np.float64), 0.0, 1.0) * levels)
+    return codes
 
 
-def write_file(path: str | os.PathLike, data: bytes | str, *, overwrite: bool = True) -> None:
+def write_file(
+    path: str | os.PathLike, data: bytes | str | Callable[[BinaryIO], None], *, overwrite: bool = True
+) -> None:
     """Write ``data`` to ``path`` atomically: through a temporary file in the same folder renamed into
     place, so an interrupted write never leaves a partial file under ``path`` and an old file is only
     replaced once the new one is complete. Ctrl-C during the write is held until the file is in
@@ -38,14 +68,15 @@ def write_file(path: str | os.PathLike, data: bytes | str, *, overwrite: bool = 
 
     Arguments:
         path: the file (missing folders are created).
-        data: the contents; text is encoded as UTF-8.
+        data: the contents; text is encoded as UTF-8; a function of the open binary file
+            writes them itself (large files are streamed, never held in memory twice).
         overwrite: replace a file already at ``path`` (else ``FileExistsError``:
             :func:`ccjax.io.outputs.put_in_place`).
 
     Returns:
         None.
     """
-    blob = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+    blob = data.encode("utf-8") if isinstance(data, str) else data if callable(data) else bytes(data)
     with interrupts_held():
         atomic_write(Path(path), blob, replace=overwrite)
 
@@ -93,18 +124,33 @@ def write_linear(path: str | os.PathLike, rgb: ArrayLike, *, overwrite: bool = T
     Raises:
         ValueError: the suffix is not ``.png``, ``.tif`` or ``.tiff``.
     """
+    write_codes(path, quantise(rgb), overwrite=overwrite)
+
+
+def write_codes(path: str | os.PathLike, codes: np.ndarray, *, overwrite: bool = True) -> None:
+    """Write ``uint16`` file codes ``(H, W, 3)`` as a 16-bit PNG or TIFF (by suffix), atomically
+    (:func:`write_file`; a TIFF is streamed into its temporary file).
+
+    Arguments:
+        path: ``.png``, ``.tif`` or ``.tiff`` file.
+        codes: ``(H, W, 3)`` ``uint16`` (:func:`quantise`).
+        overwrite: replace a file already at ``path``.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: the suffix is not ``.png``, ``.tif`` or ``.tiff``.
+    """
     path = Path(path)
     if path.suffix.lower() not in (".png", ".tif", ".tiff"):
         raise ValueError(f"output: {path} must end in .png, .tif or .tiff")
-    codes = quantise(rgb)
     if path.suffix.lower() == ".png":
         write_png(path, codes, overwrite=overwrite)
     else:
         import tifffile
 
-        buffer = io.BytesIO()
-        tifffile.imwrite(buffer, codes, photometric="rgb")
-        write_file(path, buffer.getvalue(), overwrite=overwrite)
+        write_file(path, lambda handle: tifffile.imwrite(handle, codes, photometric="rgb"), overwrite=overwrite)
 
 
 def write_dataset(

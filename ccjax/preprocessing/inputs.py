@@ -12,6 +12,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractEstimator, Estimate
+from ccjax.estimators.tiles import map_row_tiles, tile_rows
 from ccjax.io.reading import LinearImage
 from ccjax.preprocessing.methods import Preprocessing, as_preprocessing, padded_size, surfaces
 from ccjax.preprocessing.rules import DEFAULT_DARK, DEFAULT_PERCENTILE, PIXELS, usable_pixels
@@ -220,7 +221,9 @@ def estimate_image(
 
 def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "3"]:
     """Mean RGB of the masked pixels (0 if none). Summed as a matrix-vector product over rows of
-    ``W * 3`` values: XLA's CPU reductions over a minor axis of 3 are several times slower.
+    ``W * 3`` values: XLA's CPU reductions over a minor axis of 3 are several times slower. An
+    image above :data:`ccjax.estimators.tiles.TILE_PIXELS` is summed in row tiles
+    (:func:`ccjax.estimators.tiles.map_row_tiles`), so no image-sized copy is made.
 
     Arguments:
         rgb: ``(H, W, 3)`` image.
@@ -230,9 +233,21 @@ def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[A
         ``(3,)`` the mean.
     """
     height, width, _ = rgb.shape
-    rows = jnp.where(mask[..., None], rgb, 0.0).reshape(height, width * 3)
-    total = (jnp.ones((height,), rgb.dtype) @ rows).reshape(width, 3).sum(axis=0)
-    return total / jnp.maximum(jnp.sum(mask, dtype=rgb.dtype), 1.0)  # exact counts up to 2**24 pixels
+
+    def sums(image, usable, own):
+        usable = usable & own[:, None] if own is not None else usable
+        rows = jnp.where(usable[..., None], image, 0.0).reshape(image.shape[0], width * 3)
+        total = (jnp.ones((image.shape[0],), image.dtype) @ rows).reshape(width, 3).sum(axis=0)
+        return total, jnp.sum(usable, dtype=jnp.int32)
+
+    tile = tile_rows(height, width)
+    if tile is None:
+        total, count = sums(rgb, mask, None)
+    else:
+        totals, counts = map_row_tiles(sums, rgb, mask, rows=tile)
+        total, count = totals.sum(axis=0), counts.sum()
+    # Counted in int32: a float32 count is exact only up to 2**24 pixels (16.7 MP).
+    return total / jnp.maximum(count, 1).astype(rgb.dtype)
 
 
 def estimate_pixels(model: AbstractEstimator, rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:

@@ -17,7 +17,9 @@ import numpy as np
 from ccjax import io
 from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.outputs import path_key
+from ccjax.io.preview import srgb_preview_rows
 from ccjax.io.reading import MAX_PIXELS, LinearImage
+from ccjax.io.writing import row_slices
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing
 from ccjax.runs.images import ImageRun, run_models
 from ccjax.runs.sources import ImageFolder, Images, image_folder
@@ -195,10 +197,20 @@ def correct_folder(
 
     def write(index: int, image: LinearImage, estimates: dict[str, Estimate]) -> None:
         estimate = estimates[label]
-        corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening))
-        io.write_linear(written[index], corrected, overwrite=overwrite)
+
+        def corrected(rows: slice) -> np.ndarray:
+            return np.asarray(correction.correct(image.rgb[rows], estimate.illuminant, canonical, sharpening))
+
+        # Corrected a piece of rows at a time (twice: once for the file, once for the preview),
+        # so no float copy of a camera-sized image is made beside the image itself.
+        codes = np.empty(image.rgb.shape, np.uint16)
+        for rows in row_slices(image.rgb.shape):
+            codes[rows] = io.quantise(corrected(rows))
+        io.write_codes(written[index], codes, overwrite=overwrite)
+        del codes
         try:
-            io.write_preview(shown[index], corrected, matrix, overwrite=overwrite)
+            preview = srgb_preview_rows(corrected, image.rgb.shape, matrix)
+            io.write_png(shown[index], preview, overwrite=overwrite)
         except BaseException:
             # An output without its preview (a full disk) would make a rerun refuse the output.
             written[index].unlink(missing_ok=True)

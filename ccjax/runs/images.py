@@ -166,8 +166,11 @@ def run_models(
             for size in sizes:
                 for rgb_shape, mask_shape in input_shapes(model, size, preprocessing):
                     if len(rgb_shape) == 3:
-                        rgb, mask = jnp.zeros(rgb_shape, jnp.float32), jnp.zeros(mask_shape, bool)
-                        warmup[label] += _timed(model, rgb, mask)[1]
+                        # Sizes from headers that passed the pixel budget: the largest allocation
+                        # here is the largest image the run processes, and it is freed at once.
+                        zeros = jnp.zeros(rgb_shape, jnp.float32), jnp.zeros(mask_shape, bool)
+                        warmup[label] += _timed(model, *zeros)[1]
+                        del zeros
                         compiled.add((label, fold, rgb_shape))
 
     count = len(chosen)
@@ -189,7 +192,9 @@ def run_models(
         preparation["read"] += item.read_seconds
         for name, spent in item.prepare_seconds.items():
             preparation[name] += spent
-        inputs = {name: (jnp.asarray(rgb), jnp.asarray(valid)) for name, (rgb, valid) in item.inputs.items()}
+        # device_put, not jnp.asarray: on the CPU backend an aliased NumPy image is copied again
+        # (a second image-sized transient) when a compiled model first reads it.
+        inputs = {name: jax.device_put((rgb, valid)) for name, (rgb, valid) in item.inputs.items()}
         # Only the inputs stay in memory while the models run (the image too for ``each``).
         image = item.image if each is not None else None
         item.image, item.inputs = None, {}
@@ -209,6 +214,8 @@ def run_models(
             ok[label][position] = bool(result.ok)
             status[label][position] = int(result.status)
             results[label] = result
+        # The models' inputs go before ``each`` runs: it may need the memory (a corrected copy).
+        del inputs, rgb, valid
         done[position] = True
         if each is not None:
             assert image is not None
