@@ -52,7 +52,15 @@ def enable_compilation_cache() -> None:
     second run of a command skips compilation as well as fitting."""
     # The option is a dynamic attribute of jax.config (pyright cannot see it).
     if not getattr(jax.config, "jax_compilation_cache_dir"):  # noqa: B009
-        jax.config.update("jax_compilation_cache_dir", str(cache_directory() / "xla"))
+        folder = cache_directory() / "xla"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            return
+        if not os.access(folder, os.W_OK | os.X_OK):
+            # A read-only cache only costs compile time; JAX would warn on every program it compiles.
+            return
+        jax.config.update("jax_compilation_cache_dir", str(folder))
         # Small programs too: a command compiles dozens of them, each well under a second.
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.05)
 
@@ -237,14 +245,22 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any], *, re
     return path
 
 
+MAX_RECORD_BYTES = 1 << 20
+"""Largest model record read (a written one is a few kilobytes)."""
+
+
 def read_model_metadata(path: Path) -> dict[str, Any]:
     """The JSON record of a model file; ``ValueError`` when it is missing, unreadable or of another
     format version."""
     record_path = Path(path).with_suffix(".json")
     try:
+        if not record_path.is_file() or record_path.stat().st_size > MAX_RECORD_BYTES:
+            raise ValueError(f"not a regular file of at most {MAX_RECORD_BYTES} bytes")
         record = json.loads(record_path.read_text())
     except (OSError, ValueError) as error:
         raise ValueError(f"model: cannot read the metadata {record_path}: {error}") from None
+    if not isinstance(record, dict):
+        raise ValueError(f"model: the metadata {record_path} is a JSON {type(record).__name__}, not an object")
     if record.get("format") != FORMAT_VERSION:
         raise ValueError(f"model: {path} has format {record.get('format')!r}; this ccjax reads format {FORMAT_VERSION}")
     return record

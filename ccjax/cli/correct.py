@@ -105,19 +105,50 @@ def sharpening_inputs(args) -> list:
     return [args.sharpening] if args.sharpening else []
 
 
+SHARPENING_BYTES = 1 << 16
+"""Largest ``--sharpening`` file read (a 3x3 matrix is a few hundred bytes as text or .npy)."""
+
+
 def read_sharpening(path):
-    """The ``--sharpening`` matrix (text or ``.npy``), or None.
+    """The ``--sharpening`` matrix (text or ``.npy``), or None. The file is read whole only when
+    it is a regular file of at most :data:`SHARPENING_BYTES` (``/dev/zero`` is refused, not read
+    until memory runs out); ``.npy`` is read without pickles.
+
+    Arguments:
+        path: the file, or None.
+
+    Returns:
+        ``(3, 3)`` float64, or None.
 
     Raises:
-        ValueError: not an invertible, finite 3x3 matrix.
+        ValueError: not a small regular file, not a text or ``.npy`` matrix, or not an
+            invertible, finite 3x3 matrix.
     """
+    import io
+    import os
+
     import numpy as np
 
     if not path:
         return None
-    sharpening = np.load(path) if path.endswith(".npy") else np.loadtxt(path)
+    if not os.path.isfile(path):
+        raise ValueError(f"--sharpening: {path} is not a regular file")
+    if os.path.getsize(path) > SHARPENING_BYTES:
+        raise ValueError(f"--sharpening: {path} is over {SHARPENING_BYTES} bytes; a 3x3 matrix is far smaller")
+    with open(path, "rb") as handle:
+        blob = handle.read(SHARPENING_BYTES + 1)
+    try:
+        if path.endswith(".npy"):
+            sharpening = np.load(io.BytesIO(blob), allow_pickle=False)
+            if not isinstance(sharpening, np.ndarray):
+                raise ValueError("not a single .npy array (an .npz archive?)")
+        else:
+            sharpening = np.loadtxt(io.StringIO(blob.decode("utf-8")), ndmin=2)
+        sharpening = np.asarray(sharpening, np.float64)
+    except (ValueError, TypeError, OSError, EOFError) as error:
+        raise ValueError(f"--sharpening: cannot read {path}: {error}") from None
     if sharpening.shape != (3, 3) or not np.all(np.isfinite(sharpening)) or abs(np.linalg.det(sharpening)) < 1e-9:
-        raise ValueError(f"sharpening: {path} must hold an invertible 3x3 matrix")
+        raise ValueError(f"--sharpening: {path} must hold an invertible 3x3 matrix")
     return sharpening
 
 

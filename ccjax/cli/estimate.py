@@ -82,17 +82,32 @@ def run_estimate(args) -> int:
     if args.json:
         print(json.dumps(records, indent=1))
     else:
-        width = max([40, *(len(r["path"]) + 2 for r in records)])
-        print(f"{'image':<{width}}{'R':>9}{'G':>9}{'B':>9}{'r':>8}{'g':>8}  ok")
-        for r in records:
+        names = [printable(r["path"]) for r in records]
+        width = max([40, *(len(name) + 2 for name in names)])
+        print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  ok")
+        for name, r in zip(names, records, strict=True):
+            # " " before every number: an estimate of 100 or more still stands apart.
             print(
-                f"{r['path']:<{width}}"
-                + "".join(f"{v:9.5f}" for v in r["illuminant"])
-                + "".join(f"{v:8.4f}" for v in r["rg"])
+                f"{name:<{width}}"
+                + "".join(" " + f"{v:.5f}".rjust(9) for v in r["illuminant"])
+                + "".join(" " + f"{v:.4f}".rjust(7) for v in r["rg"])
                 + f"  {'yes' if r['ok'] else 'no'}"
             )
     raise_failures(list(run.failures.values()), len(source))
     return 0
+
+
+def printable(text: str) -> str:
+    """``text`` with control characters (a newline in a file name) escaped, so each table row is
+    one line.
+
+    Arguments:
+        text: a path or label.
+
+    Returns:
+        The text, with ``\\n``, ``\\t``, ``\\x1b`` ... in place of control characters.
+    """
+    return "".join(char if char.isprintable() else repr(char)[1:-1] for char in text)
 
 
 COMMANDS = [add_estimate]

@@ -267,6 +267,7 @@ def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Boo
     remainder separately, a second copy of the model to trace and compile (half the gamut
     engine's compile time). The results are those of the plain vmap.
     """
+    x, mask = jnp.asarray(x), jnp.asarray(mask)
     kind = input_kind_of(model)
     ndim = 3 if kind == "surfaces" else 4
     if x.ndim != ndim or x.shape[-1] != 3 or mask.shape != x.shape[:-1]:

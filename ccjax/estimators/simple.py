@@ -83,7 +83,9 @@ class GreyWorld(AbstractSurfaceEstimator, AbstractUnblockedEstimator):
         weights = mask.astype(rgb.dtype)
         count = jnp.sum(weights)
         mean = pairwise_reduce(rgb * weights[:, None], jnp.add) / jnp.maximum(count, 1.0)
-        return with_fallback(mean * self.scale, count > 0, self.fallback)
+        # A channel whose mean is zero holds no light to estimate (it would divide by zero in
+        # any correction): fall back, as without usable pixels.
+        return with_fallback(mean * self.scale, (count > 0) & jnp.all(mean > 0), self.fallback)
 
 
 @typing.final

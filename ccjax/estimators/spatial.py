@@ -34,7 +34,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 from ccjax.estimators.base import AbstractImageEstimator, AbstractUnblockedEstimator, Estimate, with_fallback
 from ccjax.estimators.registry import register
@@ -206,7 +206,7 @@ def edge_norms(
     mask: Bool[Array, "H W"],
     order: int,
     sigma: float,
-    p: Float[Array, ""],
+    p: Float[ArrayLike, ""],
     *,
     rows: int | None = None,
 ) -> tuple[Float[Array, "3"], Bool[Array, ""], Float[Array, ""]]:
@@ -277,6 +277,12 @@ class GreyEdge(AbstractImageEstimator, AbstractUnblockedEstimator):
     pools_pixels: ClassVar[bool] = False
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
+        if image.ndim != 3 or image.shape[-1] != 3 or mask.shape != image.shape[:2]:
+            raise ValueError(
+                f"image, mask: grey edge takes an image (H, W, 3) and its mask (H, W), got shapes "
+                f"{tuple(image.shape)} and {tuple(mask.shape)} (a pixel list has no edges; "
+                "ccjax.estimate gives it an image)"
+            )
         # Camera-sized images in row tiles: the filters' intermediates are several image-sized
         # arrays otherwise (4 GB at 48 MP).
         rows = tile_rows(*mask.shape)

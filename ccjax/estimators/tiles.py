@@ -24,16 +24,17 @@ TILE_PIXELS = 1 << 21
 """Pixels of one tile (about 2 MP: 25 MB of float32 RGB); images no larger are not tiled."""
 
 
-def tile_rows(height: int, width: int, pixels: int = TILE_PIXELS) -> int | None:
+def tile_rows(height: int, width: int, pixels: int | None = None) -> int | None:
     """Rows per tile for an image of ``height x width``, or None when it fits in one tile.
 
     Arguments:
         height, width: the image size (static).
-        pixels: the tile budget.
+        pixels: the tile budget (default :data:`TILE_PIXELS`).
 
     Returns:
         The rows of a tile (at least 1), or None.
     """
+    pixels = TILE_PIXELS if pixels is None else pixels
     if height * width <= pixels:
         return None
     return max(1, pixels // width)

@@ -104,6 +104,39 @@ def png_header(path: str | os.PathLike) -> PngHeader:
     return _header(kind, data)
 
 
+LINEAR_GAMMA = 100000
+"""A ``gAMA`` chunk's value for linear data (file gamma 1.0, in units of 1e-5)."""
+
+
+def png_encoding(path: str | os.PathLike) -> str | None:
+    """What a PNG's ancillary chunks before its image data say about its tone curve: ``"sRGB"``
+    (an ``sRGB`` chunk), ``"gAMA <g>"`` (a file gamma other than 1), or None (no such chunk, or
+    gamma 1: linear). Only chunk headers are read (a seek past each chunk's data).
+
+    Arguments:
+        path: the file (its IHDR already checked, :func:`png_header`).
+
+    Returns:
+        The encoding the file declares, or None.
+    """
+    with open(path, "rb") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        offset = len(PNG_SIGNATURE) + 25
+        while offset + 8 <= size:
+            handle.seek(offset)
+            length, kind = struct.unpack(">I4s", handle.read(8))
+            if kind in (b"IDAT", b"IEND") or offset + 12 + length > size:
+                return None
+            if kind == b"sRGB":
+                return "sRGB"
+            if kind == b"gAMA" and length == 4:
+                (gamma,) = struct.unpack(">I", handle.read(4))
+                if gamma != LINEAR_GAMMA:
+                    return f"gAMA {gamma / 1e5:g}"
+            offset += 12 + length
+    return None
+
+
 def read_png(path: str | os.PathLike) -> np.ndarray:
     """Read an 8- or 16-bit PNG (grey, grey + alpha, RGB or RGBA; interlaced or not).
 

@@ -14,7 +14,10 @@ demosaicing and noise smear saturation, below the file's last code, so pixels at
 alone miss most clipped ones), or exactly the ``saturation`` value when the caller gives one (the
 caller then knows the level).
 8-bit files are refused unless ``assume_linear``: they are almost always gamma-encoded, and
-estimating on gamma-encoded data is silently wrong.
+estimating on gamma-encoded data is silently wrong; so are PNGs whose ``sRGB`` or ``gAMA`` chunk
+declares a gamma-encoded tone curve (a ``gAMA`` of 1.0 declares linear data; an ``iCCP`` profile
+is not interpreted). A multi-page TIFF is refused rather than read as its first page, and a
+header claiming more than ``max_pixels`` pixels (default :data:`MAX_PIXELS`) before any decoding.
 
 Alpha (RGBA PNG, RGB + extra-sample TIFF) is a mask: a pixel whose alpha is below full opacity
 (the format's maximum: 255, 65535, or 1.0 for float) is *transparent* and is marked in ``clipped``
@@ -35,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ccjax.io.png import png_header, read_png
+from ccjax.io.png import png_encoding, png_header, read_png
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *RAW_SUFFIXES)
@@ -262,6 +265,11 @@ def probe_image(
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
     bit_depth = _check_layout(path, shape, dtype, assume_linear)
     check_pixels(path, shape[0], shape[1], max_pixels)
+    if suffix == ".png" and not assume_linear and (encoding := png_encoding(path)) is not None:
+        raise ValueError(
+            f"image: {path} is tagged {encoding}: its codes are gamma-encoded, not linear camera data. Use a "
+            "linear file (or raw), or pass --assume-linear if it really is linear"
+        )
     if suffix in RAW_SUFFIXES:
         black_level, full_scale = 0.0, 65535.0  # LibRaw's scale (see read_image)
     else:

@@ -20,19 +20,19 @@ CHUNK_VALUES = 1 << 22
 """Values converted at a time by the writers (float64 working copies of about 32 MB)."""
 
 
-def row_slices(shape: tuple[int, ...], values: int = CHUNK_VALUES) -> list[slice]:
+def row_slices(shape: tuple[int, ...], values: int | None = None) -> list[slice]:
     """Slices of the first axis of an array of ``shape`` holding about ``values`` values each, so
     a 48 MP image is converted in pieces instead of in float64 copies of the whole.
 
     Arguments:
         shape: the array's shape (at least one axis).
-        values: values per piece.
+        values: values per piece (default :data:`CHUNK_VALUES`).
 
     Returns:
         Slices covering ``range(shape[0])`` in order.
     """
     per_row = max(1, int(np.prod(shape[1:], dtype=np.int64)))
-    rows = max(1, values // per_row)
+    rows = max(1, (CHUNK_VALUES if values is None else values) // per_row)
     return [slice(start, min(start + rows, shape[0])) for start in range(0, shape[0], rows)]
 
 

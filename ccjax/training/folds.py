@@ -232,7 +232,11 @@ def load_model(path: str | os.PathLike) -> AbstractEstimator:
     record = read_model_metadata(path)
     if record.get("kind") != "trained-estimator" or "label" not in record:
         raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
-    world = store.world("default", record["camera"], seed=int(record.get("world_seed", 0)))
+    for field_name, kind in (("label", str), ("camera", str), ("world_seed", int)):
+        value = record.get(field_name, 0 if field_name == "world_seed" else None)
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise ValueError(f"model: the record of {path} gives {field_name} {value!r}; expected a {kind.__name__}")
+    world = store.world("default", record["camera"], seed=record.get("world_seed", 0))
     skeleton = store.fit(record["label"], world)
     return load_leaves(path, skeleton)
 
