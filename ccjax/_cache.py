@@ -125,7 +125,7 @@ def content_key(kind: str, *parts: Any) -> str:
     return digest.hexdigest()[:24]
 
 
-def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], None], *, replace: bool = True) -> None:
+def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], object], *, replace: bool = True) -> None:
     """Write ``blob`` to ``path`` through a temporary file in the same folder put in place
     (:func:`ccjax.io.outputs.put_in_place`), so readers never see a partial file; the file gets
     the usual permissions (umask). Without ``replace`` an existing ``path`` is kept

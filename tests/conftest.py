@@ -86,3 +86,14 @@ def pytest_configure(config):
     cache = os.environ.get("CCJAX_TEST_JAX_CACHE") or os.path.join(tempfile.gettempdir(), "ccjax-test-jax-cache")
     jax.config.update("jax_compilation_cache_dir", cache)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+@pytest.fixture
+def plain_preview_commands(small_world_commands, monkeypatch):
+    """:func:`small_world_commands` with the identity preview matrix (no colour-science fit)."""
+    import numpy as np
+
+    import ccjax.io
+
+    monkeypatch.setattr(ccjax.io, "preview_matrix_cached", lambda w: np.eye(3, dtype=np.float32))
+    return small_world_commands

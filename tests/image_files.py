@@ -113,3 +113,22 @@ def bad_files(tmp_path) -> list[tuple[str, object]]:
         ("greyscale", grey_png),
         ("NaN", nan),
     ]
+
+
+def textured_image(path, colour=(0.5, 0.4, 0.3)):
+    """A small 16-bit linear image of ``colour`` with some darker pixels, written at ``path``."""
+    from ccjax.io import writing
+
+    rgb = np.broadcast_to(np.asarray(colour), (6, 6, 3)).copy()
+    rgb[::2, ::3] *= 0.5
+    writing.write_linear(path, rgb)
+    return path
+
+
+def one_line_error(captured, *needles):
+    """A command's stderr is one ``ccjax ...`` line naming every needle, without a traceback."""
+    assert "Traceback" not in captured.err
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ccjax "), captured.err
+    for needle in needles:
+        assert str(needle) in lines[0], (needle, lines[0])

@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 import pytest
+from image_files import one_line_error
 
 import ccjax.io
 from ccjax import cli, io
@@ -17,9 +18,8 @@ from ccjax.runs import folders
 
 
 @pytest.fixture
-def setup(small_world_commands, monkeypatch):
-    monkeypatch.setattr(ccjax.io, "preview_matrix_cached", lambda w: np.eye(3, dtype=np.float32))
-    return small_world_commands
+def setup(plain_preview_commands):
+    return plain_preview_commands
 
 
 def _image_set(folder):
@@ -33,12 +33,7 @@ def _snapshot(folder):
 
 
 def _refused(capsys, *needles):
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.err
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("ccjax "), captured.err
-    for needle in needles:
-        assert str(needle) in lines[0], (needle, lines[0])
+    one_line_error(capsys.readouterr(), *needles)
 
 
 def _no_work(monkeypatch):

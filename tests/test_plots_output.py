@@ -9,6 +9,7 @@ import os
 
 import numpy as np
 import pytest
+from image_files import one_line_error
 from small_world import small_world
 
 from ccjax import cli
@@ -21,12 +22,7 @@ from ccjax.io import writing
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def _one_line_error(captured, *needles):
-    assert "Traceback" not in captured.err
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("ccjax "), captured.err
-    for needle in needles:
-        assert str(needle) in lines[0], (needle, lines[0])
+_one_line_error = one_line_error
 
 
 def _no_work(monkeypatch):

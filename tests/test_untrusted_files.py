@@ -12,8 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import tifffile
+from image_files import textured_image
 
-import ccjax.io
 from ccjax import cli, io
 from ccjax.io import reading, writing
 from ccjax.runs import folders, sources
@@ -42,16 +42,11 @@ def png_bomb(path, side: int) -> None:
 
 
 @pytest.fixture
-def setup(small_world_commands, monkeypatch):
-    monkeypatch.setattr(ccjax.io, "preview_matrix_cached", lambda w: np.eye(3, dtype=np.float32))
-    return small_world_commands
+def setup(plain_preview_commands):
+    return plain_preview_commands
 
 
-def _image(path, colour=(0.5, 0.4, 0.3)):
-    rgb = np.broadcast_to(np.asarray(colour), (6, 6, 3)).copy()
-    rgb[::2, ::3] *= 0.5
-    writing.write_linear(path, rgb)
-    return path
+_image = textured_image
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ as an alias)."""
 
 from __future__ import annotations
 
+import os
 import sys
 
 from ccjax.cli.common import build_world, check_outputs, overwrite_argument, start_processes, world_arguments
@@ -151,7 +152,7 @@ def train_inputs(directory, truth) -> list:
     return [truth, *(io.list_images([directory]) if directory.is_dir() else [])]
 
 
-def train_outputs(out) -> list[tuple[str, object]]:
+def train_outputs(out) -> list[tuple[str, str | os.PathLike | None]]:
     """``ccjax train``'s outputs: the ``--out`` model file and the JSON record written beside it
     (:func:`ccjax.training.save_trained`)."""
     if out is None:

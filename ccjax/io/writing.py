@@ -50,7 +50,7 @@ def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
     dtype = np.uint16 if levels > 255 else np.uint8
     rgb = np.asarray(rgb)
     if rgb.ndim == 0:
-        return np.round(np.clip(np.float64(rgb), 0.0, 1.0) * levels).astype(dtype)
+        return np.asarray(np.round(np.clip(np.float64(rgb), 0.0, 1.0) * levels), dtype)
     codes = np.empty(rgb.shape, dtype)
     for rows in row_slices(rgb.shape):
         codes[rows] = np.round(np.clip(np.asarray(rgb[rows], np.float64), 0.0, 1.0) * levels)
@@ -58,7 +58,7 @@ def quantise(rgb: ArrayLike, levels: int = 65535) -> np.ndarray:
 
 
 def write_file(
-    path: str | os.PathLike, data: bytes | str | Callable[[BinaryIO], None], *, overwrite: bool = True
+    path: str | os.PathLike, data: bytes | str | Callable[[BinaryIO], object], *, overwrite: bool = True
 ) -> None:
     """Write ``data`` to ``path`` atomically: through a temporary file in the same folder renamed into
     place, so an interrupted write never leaves a partial file under ``path`` and an old file is only
