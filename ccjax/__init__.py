@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
         AbstractImageEstimator,
         AbstractSurfaceEstimator,
         Estimate,
-        Estimator,
         Status,
         estimate_batch,
     )
@@ -35,7 +34,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
     from ccjax.training import load_model
     from ccjax.world import World
 
-__version__ = "0.1.0"
+from ccjax._version import __version__ as __version__
 
 _SOURCES = {
     "WAVELENGTHS": "ccjax.spectra",
@@ -44,7 +43,6 @@ _SOURCES = {
     "AbstractSurfaceEstimator": "ccjax.estimators",
     "Camera": "ccjax.camera",
     "Estimate": "ccjax.estimators",
-    "Estimator": "ccjax.estimators",
     "Scenes": "ccjax.scenes",
     "ShotNoise": "ccjax.scenes",
     "Specular": "ccjax.scenes",
@@ -83,7 +81,6 @@ __all__ = [
     "AbstractSurfaceEstimator",
     "Camera",
     "Estimate",
-    "Estimator",
     "Scenes",
     "ShotNoise",
     "Specular",

@@ -24,6 +24,8 @@ import equinox as eqx
 import jax
 import numpy as np
 
+from ccjax._version import __version__
+
 FORMAT_VERSION = 1
 """Version of the cache and model-file layout; a mismatch is rebuilt (cache) or refused (models)."""
 
@@ -214,8 +216,6 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any]) -> Pa
     Returns:
         ``path``.
     """
-    from ccjax import __version__
-
     path = Path(path)
     buffer = io.BytesIO()
     eqx.tree_serialise_leaves(buffer, model)

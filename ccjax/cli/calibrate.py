@@ -100,9 +100,9 @@ def add_calibrate(sub) -> None:
 
 def joint_exp_rate(table):
     """The per-channel C of F fitted by the joint (proposed) method of Table 3.1."""
-    from ccjax.calibration import experiment
+    from ccjax.calibration.table import JOINT
 
-    linearisation = table.row(experiment.JOINT).fit.linearisation
+    linearisation = table.row(JOINT).fit.linearisation
     if linearisation is None:  # the joint method always fits F; a table without it is a bug
         raise ValueError("calibration: the joint fit has no linearisation")
     return linearisation.exp_rate
@@ -131,7 +131,8 @@ def check_outputs(args) -> None:
 def run_calibrate(args) -> int:
     import numpy as np
 
-    from ccjax.calibration import experiment, files, synthetic
+    from ccjax.calibration import DEFAULT_SMOOTHNESS, experiment, files, plots, robustness, synthetic
+    from ccjax.calibration import table as table_3_1
 
     start = time.perf_counter()
     if args.synthetic == (args.file is not None):
@@ -185,12 +186,12 @@ def run_calibrate(args) -> int:
             smoothness = cross_validation.best
             if not args.json:
                 print(cross_validation.table())
-        table = experiment.calibration_table(
+        table = table_3_1.calibration_table(
             spectra,
             raw,
             black=black,
             exp_rate=args.exp_rate,
-            smoothness=experiment.DEFAULT_SMOOTHNESS if smoothness is None else smoothness,
+            smoothness=DEFAULT_SMOOTHNESS if smoothness is None else smoothness,
         )
         truth = None
         if args.json:
@@ -201,7 +202,7 @@ def run_calibrate(args) -> int:
             rates = joint_exp_rate(table)
             print()
             print(
-                experiment.held_out(
+                table_3_1.held_out(
                     spectra,
                     raw,
                     black=black,
@@ -213,9 +214,9 @@ def run_calibrate(args) -> int:
             )
         title = f"{args.file}: fitted sensors"
     if args.plot:
-        write_plot(args.plot, lambda file: experiment.plot_sensors(table, file, truth=truth, title=title))
+        write_plot(args.plot, lambda file: plots.plot_sensors(table, file, truth=truth, title=title))
     if args.save:
-        fit = table.row(experiment.JOINT).fit
+        fit = table.row(table_3_1.JOINT).fit
         files.write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation)
         print(f"wrote {args.save}", file=sys.stderr)
     if args.robustness:
@@ -223,7 +224,7 @@ def run_calibrate(args) -> int:
         if not sizes:
             raise ValueError(f"--sizes: every size is >= the {len(spectra)} measurements")
         rates = joint_exp_rate(table)
-        result = experiment.robustness(
+        result = robustness.robustness(
             spectra,
             raw,
             black=black,
@@ -241,7 +242,7 @@ def run_calibrate(args) -> int:
         if not args.json:
             print("\n" + result.text())
         title = f"robustness: {args.subsets} random subsets per size"
-        write_plot(args.robustness, lambda file: experiment.plot_robustness(result, file, title=title))
+        write_plot(args.robustness, lambda file: plots.plot_robustness(result, file, title=title))
         write(robustness_numbers(args.robustness), result.to_json())
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0

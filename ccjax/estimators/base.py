@@ -242,10 +242,6 @@ class AbstractImageEstimator(AbstractEstimator):
         """
 
 
-Estimator = AbstractEstimator
-"""Deprecated alias of :class:`AbstractEstimator` (kept for one release)."""
-
-
 def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Bool[Array, "B ..."]) -> Estimate:
     """Estimate every scene of a batch: ``jax.vmap(model)(x, mask)``, computed in blocks.
 

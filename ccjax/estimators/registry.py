@@ -56,11 +56,6 @@ class Entry:
     differentiable: bool = False
     stored: bool = True
 
-    def __iter__(self) -> Iterator[str]:
-        """Deprecated (one release): unpack as the ``(example, description)`` pair that
-        :func:`available` used to return."""
-        return iter((self.example, self.description))
-
 
 _ENTRIES: list[Entry] = []
 

@@ -15,7 +15,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ccjax.experiments.chapter5 import COMPARISONS, SHARPENINGS, chapter5_errors
-from ccjax.experiments.sweeps import is_registered, sampling_error
+from ccjax.experiments.results import sampling_error
+from ccjax.experiments.sweeps import is_registered
 from ccjax.sharpening import (
     THESIS_SCALE,
     actual_error,

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ccjax.experiments.sweeps import SweepResult
+from ccjax.experiments.results import SweepResult
 from ccjax.io.writing import write_figure
 from ccjax.world import World
 

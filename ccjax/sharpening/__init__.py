@@ -16,9 +16,6 @@ The chapter-5 experiments (Table 5.1, the transform summaries and plots of ``ccj
 camera ranking) are in :mod:`ccjax.experiments.chapter5`.
 """
 
-import importlib
-import warnings
-
 from ccjax.sharpening.learned import LearnedSharpening as LearnedSharpening
 from ccjax.sharpening.learned import learned_sharpening as learned_sharpening
 from ccjax.sharpening.learned import scene_losses as scene_losses
@@ -49,32 +46,3 @@ from ccjax.sharpening.wrapper import Sharpened as Sharpened
 from ccjax.sharpening.wrapper import estimator_fit as estimator_fit
 from ccjax.sharpening.wrapper import sharpened as sharpened
 from ccjax.sharpening.wrapper import sharpened_world as sharpened_world
-
-# Names that moved to the experiments layer (which sits above sharpening, so they cannot be
-# imported here eagerly); ``ccjax.sharpening.X`` still resolves for one release, with a warning.
-_MOVED = {
-    "SHARPENINGS": "ccjax.experiments.chapter5",
-    "COMPARISONS": "ccjax.experiments.chapter5",
-    "Chapter5Scenes": "ccjax.experiments.chapter5",
-    "Chapter5Data": "ccjax.experiments.chapter5",
-    "Chapter5Result": "ccjax.experiments.chapter5",
-    "chapter5_errors": "ccjax.experiments.chapter5",
-    "evaluate_transforms": "ccjax.experiments.chapter5",
-    "Reproduction51": "ccjax.experiments.chapter5_report",
-    "reproduce_5_1": "ccjax.experiments.chapter5_report",
-    "negative_lobes": "ccjax.experiments.chapter5_report",
-    "summary": "ccjax.experiments.chapter5_report",
-    "plot_sensors": "ccjax.experiments.chapter5_report",
-    "rank_cameras": "ccjax.experiments.chapter5_report",
-}
-
-
-def __getattr__(name: str):
-    if name in _MOVED:
-        warnings.warn(
-            f"ccjax.sharpening.{name} moved to {_MOVED[name]}.{name}; the old path goes in the next release",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return getattr(importlib.import_module(_MOVED[name]), name)
-    raise AttributeError(f"module 'ccjax.sharpening' has no attribute {name!r}")

@@ -9,7 +9,6 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ccjax._colour import chromaticity, rg_bin, rg_numpy
-from ccjax._colour import valid_pixels as valid_pixels  # re-exported: the kernels' evidence test
 
 RG_BINS = 50
 """(r,g) divisions: bins of width 0.02, as the thesis' C-by-C and neural net (§4.5.4)."""

@@ -11,16 +11,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax._colour import rg_to_rgb
+from ccjax._colour import chromaticity, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import (
     RG_BINS,
-    chromaticity,
     compact_rg_cells,
     rg_bins,
     soft_axis,
     soft_presence_score,
-    valid_pixels,
 )
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
