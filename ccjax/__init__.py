@@ -28,10 +28,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
         Status,
         estimate_batch,
     )
-    from ccjax.runs.store import fit
+    from ccjax.runs.store import fit, load_model
     from ccjax.scenes import Scenes, ShotNoise, Specular, sample
     from ccjax.spectra import WAVELENGTHS
-    from ccjax.training import load_model
     from ccjax.world import World
 
 from ccjax._version import __version__ as __version__
@@ -52,7 +51,7 @@ _SOURCES = {
     "estimate": "ccjax._estimate",
     "estimate_batch": "ccjax.estimators",
     "fit": "ccjax.runs.store",
-    "load_model": "ccjax.training",
+    "load_model": "ccjax.runs.store",
     "sample": "ccjax.scenes",
 }
 """The module each top-level name comes from."""

@@ -56,7 +56,14 @@ def preview_matrix(world) -> np.ndarray:
 
 
 def preview_matrix_cached(world) -> np.ndarray:
-    """:func:`preview_matrix`, cached on disk by the world's content (importing colour-science is slow)."""
+    """:func:`preview_matrix`, cached on disk by the world's content (importing colour-science is slow).
+
+    Arguments:
+        world: the world whose camera the matrix is for.
+
+    Returns:
+        The ``(3, 3)`` camera-to-linear-sRGB matrix of :func:`preview_matrix`.
+    """
     key = content_key("preview", PREVIEW_METHOD, world)
     return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, {"world": world.name})["matrix"]
 
@@ -80,5 +87,12 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
 
 
 def write_preview(path: str | os.PathLike, rgb: ArrayLike, matrix: np.ndarray | None = None) -> None:
-    """Write :func:`srgb_preview` of ``rgb`` as an 8-bit PNG."""
+    """Write :func:`srgb_preview` of ``rgb`` as an 8-bit PNG.
+
+    Arguments:
+        path: the PNG file.
+        rgb: ``(H, W, 3)`` linear camera RGB on the unit scale.
+        matrix: the camera-to-sRGB matrix (:func:`preview_matrix`; ``None``: as
+            :func:`srgb_preview` defaults).
+    """
     write_png(path, srgb_preview(rgb, matrix))

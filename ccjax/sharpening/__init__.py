@@ -16,33 +16,64 @@ The chapter-5 experiments (Table 5.1, the transform summaries and plots of ``ccj
 camera ranking) are in :mod:`ccjax.experiments.chapter5`.
 """
 
-from ccjax.sharpening.learned import LearnedSharpening as LearnedSharpening
-from ccjax.sharpening.learned import learned_sharpening as learned_sharpening
-from ccjax.sharpening.learned import scene_losses as scene_losses
-from ccjax.sharpening.new_method import NEGATIVE_TOLERANCE as NEGATIVE_TOLERANCE
-from ccjax.sharpening.new_method import POSITIVITY_OFFSET as POSITIVITY_OFFSET
-from ccjax.sharpening.new_method import DatabaseStatistics as DatabaseStatistics
-from ccjax.sharpening.new_method import NewSharpening as NewSharpening
-from ccjax.sharpening.new_method import ObjectiveTerms as ObjectiveTerms
-from ccjax.sharpening.new_method import new_sharpening as new_sharpening
-from ccjax.sharpening.new_method import objective as objective
-from ccjax.sharpening.new_method import objective_terms as objective_terms
-from ccjax.sharpening.new_method import on_sphere as on_sphere
-from ccjax.sharpening.transforms import THESIS_SCALE as THESIS_SCALE
-from ccjax.sharpening.transforms import actual_error as actual_error
-from ccjax.sharpening.transforms import average_sharpening as average_sharpening
-from ccjax.sharpening.transforms import best_diagonal_map as best_diagonal_map
-from ccjax.sharpening.transforms import best_linear_error as best_linear_error
-from ccjax.sharpening.transforms import best_linear_map as best_linear_map
-from ccjax.sharpening.transforms import database_responses as database_responses
-from ccjax.sharpening.transforms import database_sharpening as database_sharpening
-from ccjax.sharpening.transforms import diagonal_error as diagonal_error
-from ccjax.sharpening.transforms import mapping_error as mapping_error
-from ccjax.sharpening.transforms import normalise_transform as normalise_transform
-from ccjax.sharpening.transforms import optimal_sharpening as optimal_sharpening
-from ccjax.sharpening.transforms import sharpness as sharpness
-from ccjax.sharpening.wrapper import EstimatorFit as EstimatorFit
-from ccjax.sharpening.wrapper import Sharpened as Sharpened
-from ccjax.sharpening.wrapper import estimator_fit as estimator_fit
-from ccjax.sharpening.wrapper import sharpened as sharpened
-from ccjax.sharpening.wrapper import sharpened_world as sharpened_world
+from ccjax.sharpening.learned import LearnedSharpening, learned_sharpening, scene_losses
+from ccjax.sharpening.new_method import (
+    NEGATIVE_TOLERANCE,
+    POSITIVITY_OFFSET,
+    DatabaseStatistics,
+    NewSharpening,
+    ObjectiveTerms,
+    new_sharpening,
+    objective,
+    objective_terms,
+    on_sphere,
+)
+from ccjax.sharpening.transforms import (
+    THESIS_SCALE,
+    actual_error,
+    average_sharpening,
+    best_diagonal_map,
+    best_linear_error,
+    best_linear_map,
+    database_responses,
+    database_sharpening,
+    diagonal_error,
+    mapping_error,
+    normalise_transform,
+    optimal_sharpening,
+    sharpness,
+)
+from ccjax.sharpening.wrapper import EstimatorFit, Sharpened, estimator_fit, sharpened, sharpened_world
+
+__all__ = [
+    "NEGATIVE_TOLERANCE",
+    "POSITIVITY_OFFSET",
+    "THESIS_SCALE",
+    "DatabaseStatistics",
+    "EstimatorFit",
+    "LearnedSharpening",
+    "NewSharpening",
+    "ObjectiveTerms",
+    "Sharpened",
+    "actual_error",
+    "average_sharpening",
+    "best_diagonal_map",
+    "best_linear_error",
+    "best_linear_map",
+    "database_responses",
+    "database_sharpening",
+    "diagonal_error",
+    "estimator_fit",
+    "learned_sharpening",
+    "mapping_error",
+    "new_sharpening",
+    "normalise_transform",
+    "objective",
+    "objective_terms",
+    "on_sphere",
+    "optimal_sharpening",
+    "scene_losses",
+    "sharpened",
+    "sharpened_world",
+    "sharpness",
+]

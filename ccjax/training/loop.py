@@ -72,7 +72,17 @@ class Schedule:
 @dataclass
 class TrainingLog:
     """What happened: per-epoch mean training loss and held-out angular error (degrees); wall and
-    CPU (process) seconds of the whole fit."""
+    CPU (process) seconds of the whole fit.
+
+    Attributes:
+        train_loss: mean training loss per epoch.
+        heldout_median, heldout_mean: held-out angular error per epoch (degrees).
+        initial_median: held-out median before training.
+        best_epoch: the epoch whose parameters were kept.
+        stopped_early: early stopping ended the fit.
+        seconds, cpu_seconds: wall and process CPU time of the fit.
+        n_train, n_heldout: number of training and held-out examples.
+    """
 
     train_loss: list[float] = field(default_factory=list)
     heldout_median: list[float] = field(default_factory=list)
@@ -93,7 +103,17 @@ def subsample(
     key: PRNGKeyArray, x: Float[Array, "B P 3"], mask: Bool[Array, "B P"], count: int
 ) -> tuple[Float[Array, "B S 3"], Bool[Array, "B S"]]:
     """``count`` slots of each surface list, its valid surfaces first in a random order (a uniform
-    subset of them when there are more than ``count``)."""
+    subset of them when there are more than ``count``).
+
+    Arguments:
+        key: PRNG key.
+        x: ``(B, P, 3)`` surface lists.
+        mask: ``(B, P)`` valid surfaces.
+        count: slots kept per list.
+
+    Returns:
+        ``(x (B, count, 3), mask (B, count))``.
+    """
     noise = jax.random.uniform(key, mask.shape)
     order = jnp.argsort(jnp.where(mask, noise, noise + 2.0), axis=-1)[:, :count]
     return jnp.take_along_axis(x, order[..., None], axis=1), jnp.take_along_axis(mask, order, axis=1)
@@ -107,6 +127,11 @@ def _batch_estimates(model, x, mask):
 
 def predict(model: AbstractEstimator, examples: Examples, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """The model's estimates for every example, in fixed-size chunks (one compilation).
+
+    Arguments:
+        model: the estimator.
+        examples: the examples.
+        chunk: examples per compiled call.
 
     Returns:
         ``(illuminants (N, 3), ok (N,))`` as NumPy arrays.
@@ -124,7 +149,15 @@ def predict(model: AbstractEstimator, examples: Examples, chunk: int = 64) -> tu
 
 
 def angular_errors(model: AbstractEstimator, examples: Examples) -> np.ndarray:
-    """Per-example recovery angular error (degrees) of ``model``."""
+    """Per-example recovery angular error (degrees) of ``model``.
+
+    Arguments:
+        model: the estimator.
+        examples: the examples, with their true lights.
+
+    Returns:
+        ``(N,)`` angular errors in degrees.
+    """
     estimates, _ = predict(model, examples)
     return np.asarray(metrics.angular_error(jnp.asarray(estimates), examples.illuminant))
 

@@ -25,7 +25,11 @@ _LEARNABLE = {
 
 
 def learnable_types() -> tuple[str, ...]:
-    """Names of the model types :func:`learnable` knows."""
+    """Names of the model types :func:`learnable` knows.
+
+    Returns:
+        The class names.
+    """
     return tuple(kind.__name__ for kind in _LEARNABLE)
 
 
@@ -52,7 +56,14 @@ def learnable(model: AbstractEstimator):
 
 def constrain(model: AbstractEstimator) -> AbstractEstimator:
     """Re-establish what a learned model must satisfy after an update: grey edge's Minkowski norm
-    stays a norm (>= 1)."""
+    stays a norm (>= 1).
+
+    Arguments:
+        model: the updated model.
+
+    Returns:
+        The model with its constraints re-established.
+    """
     import jax.numpy as jnp
 
     if isinstance(model, GreyEdge):
