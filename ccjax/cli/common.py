@@ -98,7 +98,7 @@ def write(path: str, text: str) -> None:
     Returns:
         None.
     """
-    from ccjax.io.writing import write_file
+    from ccjax.io.files import write_file
 
     if path == "-":
         sys.stdout.write(text + ("\n" if not text.endswith("\n") else ""))
@@ -108,7 +108,7 @@ def write(path: str, text: str) -> None:
 
 
 def path_key(path: str | os.PathLike) -> str:
-    """:func:`ccjax.io.writing.path_key` (imported on use: the command modules import only the
+    """:func:`ccjax.io.files.path_key` (imported on use: the command modules import only the
     standard library until the command runs).
 
     Arguments:
@@ -117,7 +117,7 @@ def path_key(path: str | os.PathLike) -> str:
     Returns:
         The key.
     """
-    from ccjax.io.writing import path_key as key
+    from ccjax.io.files import path_key as key
 
     return key(path)
 
@@ -221,24 +221,17 @@ def check_plot(path: str | os.PathLike | None, option: str = "--plot") -> None:
 
 
 def write_plot(path: str | os.PathLike, draw) -> None:
-    """Write a plot atomically: ``draw(buffer)`` renders the PNG into memory (matplotlib's
-    ``savefig`` takes a file object), then :func:`ccjax.io.writing.write_file` puts it in place
-    through a temporary file, so an interrupted run never leaves a partial plot.
+    """Write a plot and say so: ``draw(path)`` saves it (the plotting functions write through
+    :func:`ccjax.io.files.write_figure`, atomically), then the path is reported on stderr.
 
     Arguments:
         path: the ``.png`` file (checked first with :func:`check_plot`).
-        draw: a function of one binary file object that saves the figure there as PNG.
+        draw: a function of the path that saves the figure there.
 
     Returns:
         None.
     """
-    import io
-
-    from ccjax.io.writing import write_file
-
-    buffer = io.BytesIO()
-    draw(buffer)
-    write_file(path, buffer.getvalue())
+    draw(path)
     print(f"wrote {path}", file=sys.stderr)
 
 

@@ -155,7 +155,7 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ccjax.io.writing import write_figure
+    from ccjax.io.files import write_figure
     from ccjax.spectra import chromaticity
 
     whites = chromaticity(_world_whites(world))

@@ -231,7 +231,7 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ccjax.io.writing import write_figure
+    from ccjax.io.files import write_figure
     from ccjax.spectra import WAVELENGTHS
 
     original = np.asarray(world.camera.sensors, dtype=np.float64)

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ccjax.experiments.results import SweepResult
-from ccjax.io.writing import write_figure
+from ccjax.io.files import write_figure
 from ccjax.world import World
 
 STATISTIC_LABELS = {
@@ -39,7 +39,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
 
     Arguments:
         result: a sweep.
-        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
         statistics: one panel per statistic.
         summary: the summary of the per-scene errors (``"rms"`` as in the thesis).
         title: the figure title (default: the scenes per point).
@@ -76,7 +76,7 @@ def plot_world(world: World, path) -> None:
 
     Arguments:
         world: the world.
-        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
     """
     from ccjax.spectra import chromaticity
 

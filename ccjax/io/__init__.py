@@ -8,6 +8,7 @@ file (nonzero = usable). :func:`probe_image` validates a file from its header al
 input can be checked before any work and decoded once.
 """
 
+from ccjax.io.files import path_key, write_figure, write_file
 from ccjax.io.ground_truth import (
     GroundTruth,
     match_ground_truth,
@@ -40,6 +41,7 @@ __all__ = [
     "PngHeader",
     "list_images",
     "match_ground_truth",
+    "path_key",
     "png_header",
     "preview_matrix",
     "preview_matrix_cached",
@@ -52,6 +54,8 @@ __all__ = [
     "read_png",
     "srgb_preview",
     "write_dataset",
+    "write_figure",
+    "write_file",
     "write_ground_truth",
     "write_linear",
     "write_png",

@@ -16,8 +16,8 @@ import numpy as np
 
 from ccjax import io
 from ccjax.estimators.base import AbstractEstimator, Estimate
+from ccjax.io.files import path_key
 from ccjax.io.reading import LinearImage
-from ccjax.io.writing import path_key
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing
 from ccjax.runs.images import ImageRun, run_models
 from ccjax.runs.sources import ImageFolder, Images, image_folder
