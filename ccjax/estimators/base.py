@@ -17,8 +17,6 @@ import numpy as np
 from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
-TINY = 1e-12
-
 KINDS = ("surfaces", "image")
 """The input kinds of estimators (``AbstractEstimator.input_kind``)."""
 

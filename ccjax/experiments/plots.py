@@ -78,7 +78,7 @@ def plot_world(world: World, path) -> None:
         world: the world.
         path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
     """
-    from ccjax.spectra import chromaticity
+    from ccjax._colour import rg_numpy
 
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), sharex=True, sharey=True)
@@ -88,9 +88,9 @@ def plot_world(world: World, path) -> None:
         ("reflectances under the canonical light", np.asarray(world.canonical_rgb), 2),
     ]
     for ax, (title, rgb, size) in zip(axes, panels, strict=True):
-        rg = chromaticity(rgb)
+        rg = rg_numpy(np.asarray(rgb, np.float64))
         ax.scatter(rg[:, 0], rg[:, 1], s=size, alpha=0.7)
-        canon = chromaticity(np.asarray(world.canonical_white))
+        canon = rg_numpy(np.asarray(world.canonical_white, np.float64))
         ax.scatter([canon[0]], [canon[1]], marker="*", s=120, c="red", label="canonical")
         ax.set_title(f"{title} ({len(rgb)})")
         ax.set_xlabel("r")
