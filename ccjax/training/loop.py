@@ -12,11 +12,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 from tqdm.auto import tqdm
 
 from ccjax import augment, losses, metrics
+from ccjax._adam import adam_init, adam_step
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.runs import hosts
 from ccjax.training.data import Examples
@@ -168,10 +168,6 @@ def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return np.sort(order[held:]), np.sort(order[:held])
 
 
-def _optimiser(learning_rate: float):
-    return optax.adam(learning_rate)
-
-
 @eqx.filter_jit
 def _step(params, static, opt_state, x, mask, illuminant, targets, key, schedule: Schedule):
     key_subset, key_light, key_which = jax.random.split(key, 3)
@@ -188,12 +184,7 @@ def _step(params, static, opt_state, x, mask, illuminant, targets, key, schedule
         estimate = jax.vmap(model)(x, mask).illuminant
         return losses.illuminant_loss(schedule.loss, estimate, illuminant)
 
-    loss, grads = jax.value_and_grad(loss_of)(params)
-    # optax's bias correction raises a float32 decay to an int32 step count; run it under JAX's
-    # standard promotion (as the neural-net training does) so strict-promotion callers can train.
-    with jax.numpy_dtype_promotion("standard"):
-        updates, opt_state = _optimiser(schedule.learning_rate).update(grads, opt_state, params)
-    params = eqx.apply_updates(params, updates)
+    params, opt_state, loss = adam_step(loss_of, params, opt_state, learning_rate=schedule.learning_rate)
     model = constrain(eqx.combine(params, static))
     params, _ = eqx.partition(model, learnable(model))
     return params, opt_state, loss
@@ -240,7 +231,7 @@ def fit_to_examples(
         validation, examples = examples.take(held_index), examples.take(train_index)
     batch = min(schedule.batch_size, len(examples))
     params, static = eqx.partition(model, spec)
-    opt_state = _optimiser(schedule.learning_rate).init(params)
+    opt_state = adam_init(params)
     targets = examples.illuminant
     if mesh is not None:
         devices = mesh.devices.size
