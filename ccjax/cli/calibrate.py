@@ -116,7 +116,8 @@ def robustness_numbers(path: str) -> str:
 
 
 def check_outputs(args) -> None:
-    """Refuse unwritable or clashing output files before any work (issue 17 item 7)."""
+    """Refuse unwritable or clashing output files before any work (a bad path found after minutes of
+    fitting would lose the run)."""
     check_plot(args.plot)
     check_plot(args.robustness, "--robustness")
     outputs = [("--plot", args.plot), ("--save", args.save), ("--robustness", args.robustness)]
