@@ -407,17 +407,6 @@ def test_sharpened_passes_the_status_of_the_run_that_answered(small_world):
     np.testing.assert_array_equal(np.asarray(model(rgb, jnp.ones(8, bool)).illuminant), np.asarray(full.illuminant))
 
 
-def test_moved_names_resolve_from_the_old_path_with_a_warning():
-    from ccjax.experiments import chapter5_report
-
-    with pytest.warns(DeprecationWarning, match="chapter5_report"):
-        assert sh.reproduce_5_1 is chapter5_report.reproduce_5_1
-    with pytest.warns(DeprecationWarning, match="chapter5"):
-        assert sh.chapter5_errors is chapter5.chapter5_errors
-    with pytest.raises(AttributeError):
-        _ = sh.no_such_name
-
-
 def test_chapter5_scenes_are_the_sampled_scenes(small_world):
     """Chapter 5 draws its scenes with the scene sampler's draw function: scene k of the
     experiment has the light and surfaces of scene k of ``sample`` on the same stream."""

@@ -16,16 +16,7 @@ colours live in :class:`SceneTables` (:mod:`ccjax.scenes.tables`;
 """
 
 from ccjax.scenes.mondrian import MondrianImages, mondrian_batch, mondrian_layout, render_mondrian, sample_mondrians
-from ccjax.scenes.options import (
-    Fluorescent,
-    Metallic,
-    SceneOptions,
-    ShotNoise,
-    Specular,
-    require_count,
-    resolve_materials,
-    resolve_options,
-)
+from ccjax.scenes.options import Fluorescent, Metallic, SceneOptions, ShotNoise, Specular
 from ccjax.scenes.surfaces import (
     SceneDraw,
     SceneKeys,
@@ -60,9 +51,6 @@ __all__ = [
     "mondrian_batch",
     "mondrian_layout",
     "render_mondrian",
-    "require_count",
-    "resolve_materials",
-    "resolve_options",
     "sample",
     "sample_batch",
     "sample_batch_slots",
