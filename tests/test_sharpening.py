@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ccjax import sharpening as sh
@@ -94,6 +94,7 @@ def small_world(default_world) -> World:
 
 @settings(max_examples=10, deadline=None)
 @given(st.integers(0, 10_000))
+@example(895)  # a transform of condition number 1.5e4: float32 normal equations fail there
 def test_best_linear_and_diagonal_match_numpy(seed):
     train, canonical = random_database(seed)
     source = train[0]
