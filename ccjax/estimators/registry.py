@@ -67,6 +67,7 @@ FAMILIES = (
     "ccjax.estimators.correlation",
     "ccjax.estimators.neural",
     "ccjax.estimators.spatial",
+    "ccjax.estimators.ffcc",
 )
 _loaded = False
 

@@ -22,6 +22,7 @@ from ccjax.training.folds import (
 )
 from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples, predict, subsample
 from ccjax.training.parameters import constrain, learnable, learnable_types
+from ccjax.training.procedures import train_model
 
 __all__ = [
     "CrossValidation",
@@ -42,5 +43,6 @@ __all__ = [
     "read_folds",
     "source_examples",
     "subsample",
+    "train_model",
     "train_on_images",
 ]

@@ -12,7 +12,8 @@ import numpy as np
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.training.data import Examples, read_examples
-from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples
+from ccjax.training.loop import Schedule, TrainingLog, angular_errors
+from ccjax.training.procedures import train_model
 
 
 def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:
@@ -165,7 +166,7 @@ def cross_validate(
     for fold in np.unique(folds):
         test = np.flatnonzero(folds == fold)
         train = np.flatnonzero(folds != fold)  # never the scored fold (early stopping splits these)
-        trained, log = fit_to_examples(model, examples.take(train), schedule, progress=progress)
+        trained, log = train_model(model, examples.take(train), schedule, progress=progress)
         errors = angular_errors(trained, examples.take(test))
         result.folds.append(
             FoldResult(int(fold), [names[i] for i in test], errors, untrained[test], log, [names[i] for i in train])
@@ -227,7 +228,7 @@ def train_on_images(
     if folds is not None:
         assignment = assign_folds(examples.names, folds, seed=fold_seed, given=table.folds)
         validation, _ = cross_validate(start, examples, assignment, schedule, method=method, progress=progress)
-    model, log = fit_to_examples(start, examples, schedule, progress=progress)
+    model, log = train_model(start, examples, schedule, progress=progress)
     if out is not None:
         record = {"schedule": asdict(schedule), "log": log.as_dict()}
         store.save_trained(out, model, label=method, camera=camera, world_seed=world_seed, record=record)

@@ -8,11 +8,13 @@ import jax
 
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.estimators.correlation import ColourByCorrelation, ColourByCorrelation3D
+from ccjax.estimators.ffcc import FFCC
 from ccjax.estimators.neural import LogChromaNet, NeuralNet
 from ccjax.estimators.spatial import GreyEdge
 
 # What each family learns: the Colour by Correlation matrix (Barnard 1999 §4.5.4, ch. 10; starts
-# from the camera's spectral fit), grey edge's Minkowski norm, the net's weights (§4.5.5). (A
+# from the camera's spectral fit), grey edge's Minkowski norm, the net's weights (§4.5.5), FFCC's
+# filters and bias map (Barron & Tsai 2017 §3). (A
 # sharpened model's inner estimator is fitted to the sharpened world, so its transform is learned
 # through a traceable fit instead: ccjax.sharpening.learned.)
 _LEARNABLE = {
@@ -21,6 +23,7 @@ _LEARNABLE = {
     GreyEdge: lambda m: m.p,
     NeuralNet: lambda m: m.net,
     LogChromaNet: lambda m: m.net,
+    FFCC: lambda m: (m.filters, m.bias),
 }
 
 
