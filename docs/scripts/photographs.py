@@ -21,6 +21,7 @@ import argparse
 import json
 import math
 import pathlib
+import shutil
 import sys
 import tempfile
 
@@ -41,14 +42,14 @@ NUS8 = tuple(
 
 
 def _subset(directory: pathlib.Path, count: int, scratch: pathlib.Path) -> pathlib.Path:
-    """A folder of links to the first ``count`` images of ``directory`` and their ground truth."""
+    """A folder of copies of the first ``count`` images of ``directory`` and their ground truth."""
     lines = (directory / "groundtruth.csv").read_text().splitlines()
     target = scratch / directory.name
     target.mkdir()
     (target / "groundtruth.csv").write_text("\n".join(lines[: count + 1]) + "\n")
     for line in lines[1 : count + 1]:
         name = line.split(",")[0]
-        (target / name).symlink_to(directory / name)
+        shutil.copyfile(directory / name, target / name)
     return target
 
 
@@ -141,10 +142,14 @@ def main(argv=None) -> int:
     parser.add_argument("--models", default=None, help="write each fold's trained model under this folder")
     parser.add_argument("--quick", action="store_true", help="the first 60 images of each set (a smoke run)")
     parser.add_argument("--no-write", action="store_true", help="print only: leave docs/ unchanged")
+    parser.add_argument("--merge", action="store_true", help="keep the other sets of docs/data/photographs.json")
     args = parser.parse_args(argv)
     root = pathlib.Path(args.root)
     models = pathlib.Path(args.models) if args.models else None
     report: dict = {"saturation": args.saturation, "folds": 3, "quick": args.quick, "sets": {}}
+    existing = DOCS / "data" / "photographs.json"
+    if args.merge and existing.exists():
+        report["sets"] = json.loads(existing.read_text())["sets"]
     with tempfile.TemporaryDirectory() as scratch:
         for name in args.sets.split(","):
             directory = root / name

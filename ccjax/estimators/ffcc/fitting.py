@@ -31,6 +31,10 @@ from ccjax.estimators.neural.log_chroma import log_chroma
 __all__ = ["Hyperparameters", "TrainingRecord", "fit_origin", "histograms", "loss", "preconditioner", "train"]
 
 
+PAD = 128
+"""Training sets are padded (with images of weight 0) to a multiple of this many images."""
+
+
 @dataclass(frozen=True)
 class Hyperparameters:
     """FFCC's training settings (the reference code's ``HYPERPARAMS`` and ``TRAINING`` names).
@@ -141,6 +145,7 @@ def loss(
     weights: Float[Array, "3"],
     diagonal: float,
     bin_size: float,
+    counted: Float[Array, " N"] | None = None,
 ) -> Float[Array, ""]:
     """FFCC's training objective in the preconditioned variables (FFCC §3-§4): the mean over the
     images of ``weights . (cross-entropy, von Mises NLL, expected squared error)`` plus
@@ -154,6 +159,8 @@ def loss(
         weights: ``(3,)`` the weights of the three losses.
         diagonal: variance added to the fitted covariance, bins^2.
         bin_size: log-chroma width of a bin.
+        counted: ``(N,)`` weight of each image in the mean (None: 1 each); padding images
+            weigh 0.
 
     Returns:
         The objective.
@@ -173,14 +180,15 @@ def loss(
         expected = 32.0 * bin_size**2 * (jnp.sum((mean - target) ** 2) + jnp.trace(covariance))
         return jnp.stack([crossent, nll, expected]) @ weights
 
-    data = jnp.mean(jax.vmap(one)(histogram_fft, truth))
+    per_image = jax.vmap(one)(histogram_fft, truth)
+    data = jnp.mean(per_image) if counted is None else jnp.sum(counted * per_image) / jnp.sum(counted)
     return data + 0.5 * (jnp.sum(filters_latent**2) + jnp.sum(bias_latent**2))
 
 
 @eqx.filter_jit
-def _minimise(latent, scales, histogram_fft, truth, weights, diagonal, bin_size, iterations: int, memory: int):
+def _minimise(latent, scales, histogram_fft, truth, counted, weights, diagonal, bin_size, iterations, memory: int):
     def objective(params):
-        return loss(params, scales, histogram_fft, truth, weights, diagonal, bin_size)
+        return loss(params, scales, histogram_fft, truth, weights, diagonal, bin_size, counted)
 
     solver = optax.lbfgs(memory_size=memory)
     value_and_grad = optax.value_and_grad_from_state(objective)
@@ -232,6 +240,13 @@ def train(
     model = eqx.tree_at(lambda m: m.origin, model, origin)
     histogram_fft = jnp.fft.rfft2(histograms(model, jnp.asarray(images), jnp.asarray(masks)))
     truth = (truth_uv - origin) / size
+    # Pad the training set to a multiple of PAD images that weigh 0: training sets of nearby
+    # sizes (the folds of a cross-validation) share one compiled solver.
+    count = truth.shape[0]
+    extra = -count % PAD
+    counted = jnp.concatenate([jnp.ones(count, truth.dtype), jnp.zeros(extra, truth.dtype)])
+    histogram_fft = jnp.concatenate([histogram_fft, jnp.repeat(histogram_fft[:1], extra, axis=0)])
+    truth = jnp.concatenate([truth, jnp.repeat(truth[:1], extra, axis=0)])
     scales = (
         jnp.stack([preconditioner(n, tv, l2) for tv, l2 in zip(h.filter_tv, h.filter_l2, strict=True)]),
         preconditioner(n, h.bias_tv, h.bias_l2),
@@ -247,10 +262,11 @@ def train(
             scales,
             histogram_fft,
             truth,
+            counted,
             jnp.asarray(weights, model.bias.dtype),
             h.diagonal,
             size,
-            iterations,
+            jnp.asarray(iterations, jnp.int32),  # traced: both passes share one compiled solver
             h.memory,
         )
         losses.append(float(value))
