@@ -159,7 +159,7 @@ def test_training_on_synthetic_scenes_beats_grey_world(tmp_path, default_world):
     posterior = jax.vmap(model.posterior)(test_images, test_masks)
     assert np.all(np.linalg.eigvalsh(np.asarray(posterior.covariance)) > 0)
     assert np.all((np.asarray(posterior.confidence) > 0) & (np.asarray(posterior.confidence) <= 1 + 1e-6))
-    path = training.save_trained(tmp_path / "ffcc", model, label="FFCC", camera="Canon EOS 5D Mark II")
+    path = training.save_trained(tmp_path / "ffcc.eqx", model, label="FFCC", camera="Canon EOS 5D Mark II")
     loaded = training.load_model(path)
     again = jax.vmap(loaded)(test_images, test_masks)
     np.testing.assert_allclose(np.asarray(again.illuminant), np.asarray(estimate.illuminant), rtol=1e-6)

@@ -11,7 +11,7 @@ Run::
 ``ROOT`` holds one folder per set (``cube_plus/``, ``nus8-<camera>/``) with ``groundtruth.csv``.
 It prints the per-set rows and the NUS-8 geometric means, writes ``docs/data/photographs.json``
 and rewrites the table between the markers of ``docs/photographs.md``. ``--models DIR`` writes
-each fold's trained model (``DIR/<set>/<label>-fold<k>``, :func:`ccjax.training.save_trained`).
+each fold's trained model (``DIR/<set>/<label>-fold<k>.eqx``, :func:`ccjax.training.save_trained`).
 ``--quick``: the first 60 images of each set, for a smoke run.
 """
 
@@ -83,7 +83,7 @@ def evaluate_set(directory: pathlib.Path, methods, train, saturation: float, mod
         rows[label + " trained"]["train_seconds"] = float(np.mean([fold.log.seconds for fold in validation.folds]))
         if models is not None:
             for fold, model in enumerate(evaluation.trained_models[label + " trained"]):
-                path = models / directory.name / f"{label}-fold{fold}"
+                path = models / directory.name / f"{label}-fold{fold}.eqx"
                 path.parent.mkdir(parents=True, exist_ok=True)
                 save_trained(path, model, label=label, camera=camera or "Canon EOS 5D Mark II")
     return {"camera": camera, "images": len(results.paths), "methods": rows}
@@ -147,9 +147,6 @@ def main(argv=None) -> int:
     root = pathlib.Path(args.root)
     models = pathlib.Path(args.models) if args.models else None
     report: dict = {"saturation": args.saturation, "folds": 3, "quick": args.quick, "sets": {}}
-    existing = DOCS / "data" / "photographs.json"
-    if args.merge and existing.exists():
-        report["sets"] = json.loads(existing.read_text())["sets"]
     with tempfile.TemporaryDirectory() as scratch:
         for name in args.sets.split(","):
             directory = root / name
@@ -159,6 +156,9 @@ def main(argv=None) -> int:
             report["sets"][name] = entry
             for label, row in entry["methods"].items():
                 print(f"{name:<18}{label:<28}mean {row['mean']:6.2f}  median {row['median']:6.2f}", flush=True)
+    existing = DOCS / "data" / "photographs.json"
+    if args.merge and existing.exists():
+        report["sets"] = {**json.loads(existing.read_text())["sets"], **report["sets"]}
     report["nus8_geometric_mean"] = geometric_means(report["sets"])
     text = table(report)
     print(text)

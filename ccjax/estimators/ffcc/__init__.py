@@ -43,7 +43,7 @@ def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIG
 
     Arguments:
         bins: histogram bins per axis (even).
-        bin_size: log-chroma width of a bin.
+        bin_size: log-chroma width of a bin (training may widen it, :func:`.fitting.fit_grid`).
         origin: log-chroma of bin ``(0, 0)``'s centre on both axes (training re-centres it on
             the training lights).
 
@@ -58,7 +58,7 @@ def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIG
         filters=jnp.zeros((2, bins, bins), jnp.float32),
         bias=jnp.zeros((bins, bins), jnp.float32),
         origin=jnp.full((2,), origin, jnp.float32),
-        bin_size=float(bin_size),
+        bin_size=jnp.asarray(bin_size, jnp.float32),
     )
 
 

@@ -9,7 +9,8 @@ costs ``(tv * TV(k) + l2) |fft2(F)(k)|^2``. The model is optimised in the variab
 well-conditioned problem. Two passes as in the reference code: 16 iterations of the convex
 cross-entropy loss, then 64 of the von Mises negative log-likelihood of the true light (FFCC §4).
 Hyperparameters: the reference code's, tuned by its authors for the Canon 600D thumbnails of the
-NUS-8 set (``ChengCanon600DThumbHyperparams``), fixed for every camera here.
+NUS-8 set (``ChengCanon600DThumbHyperparams``), fixed for every camera here; the histogram's
+origin and bin size are fitted to the training lights (:func:`fit_origin`, :func:`fit_grid`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ from ccjax.estimators.neural.log_chroma import log_chroma
 
 __all__ = ["Hyperparameters", "TrainingRecord", "fit_origin", "histograms", "loss", "preconditioner", "train"]
 
+
+FILL = 0.75
+"""The largest share of the histogram's width the training lights' log-chroma range may fill
+(:func:`fit_grid`)."""
 
 PAD = 128
 """Training sets are padded (with images of weight 0) to a multiple of this many images."""
@@ -118,12 +123,33 @@ def _histograms(model: FFCC, images: Float[Array, "N H W 3"], masks: Bool[Array,
     return jax.vmap(lambda image, mask: model.histogram(image, mask))(images, masks)
 
 
-def fit_origin(truth_uv: Float[Array, "N 2"], bins: int, bin_size: float) -> Float[Array, "2"]:
+def fit_origin(truth_uv: Float[Array, "N 2"], bins: int, bin_size) -> Float[Array, "2"]:
     """The grid's origin that centres the training lights' log-chroma range on the histogram
     (on whole bins), so that the torus holds every training light (a choice made on the training
     images only)."""
     middle = 0.5 * (jnp.min(truth_uv, axis=0) + jnp.max(truth_uv, axis=0))
     return bin_size * jnp.round(middle / bin_size) - bin_size * (bins // 2)
+
+
+def fit_grid(truth_uv: Float[Array, "N 2"], bins: int, bin_size: float, fill: float = FILL) -> float:
+    """The bin size: ``bin_size`` doubled until the training lights' log-chroma range fills at
+    most ``fill`` of the histogram's width on each axis. The histogram wraps (FFCC §3), so the
+    colours of a scene lit near the window's edge alias onto its far side; a window the lights
+    nearly fill leaves no margin for them (a choice made on the training lights only).
+
+    Arguments:
+        truth_uv: ``(N, 2)`` the training lights' log-chroma.
+        bins: bins per axis.
+        bin_size: the narrowest bin considered.
+        fill: the largest share of the width the lights' range may take.
+
+    Returns:
+        The bin size.
+    """
+    spread = float(jnp.max(jnp.max(truth_uv, axis=0) - jnp.min(truth_uv, axis=0)))
+    while spread > fill * bins * bin_size:
+        bin_size *= 2
+    return bin_size
 
 
 def _bilinear(target: Float[Array, "2"], n: int) -> Float[Array, "n n"]:
@@ -144,7 +170,7 @@ def loss(
     truth: Float[Array, "N 2"],
     weights: Float[Array, "3"],
     diagonal: float,
-    bin_size: float,
+    bin_size: Float[Array, ""] | float,
     counted: Float[Array, " N"] | None = None,
 ) -> Float[Array, ""]:
     """FFCC's training objective in the preconditioned variables (FFCC §3-§4): the mean over the
@@ -214,8 +240,9 @@ def train(
     """Train FFCC on images with ground truth (module docstring).
 
     Arguments:
-        model: the start (its grid's bin count and bin size are kept; its filters are not used:
-            training starts from zero, as the objective's first pass is convex).
+        model: the start (its bin count is kept and its bin size the narrowest considered,
+            :func:`fit_grid`; its filters are not used: training starts from zero, as the
+            objective's first pass is convex).
         images: ``(N, H, W, 3)`` linear RGB, 1.0 = saturation.
         masks: ``(N, H, W)`` usable pixels.
         illuminants: ``(N, 3)`` the true lights (camera RGB, any scale, every channel positive).
@@ -234,10 +261,11 @@ def train(
     if not bool(jnp.all(illuminants > 0)):
         raise ValueError("illuminants: every channel of every training light must be positive")
     h = hyperparameters
-    n, size = model.bins, model.bin_size
+    n = model.bins
     truth_uv = log_chroma(illuminants)
+    size = jnp.asarray(fit_grid(truth_uv, n, float(model.bin_size)), model.bias.dtype)
     origin = fit_origin(truth_uv, n, size).astype(model.bias.dtype)
-    model = eqx.tree_at(lambda m: m.origin, model, origin)
+    model = eqx.tree_at(lambda m: (m.origin, m.bin_size), model, (origin, size))
     histogram_fft = jnp.fft.rfft2(histograms(model, jnp.asarray(images), jnp.asarray(masks)))
     truth = (truth_uv - origin) / size
     # Pad the training set to a multiple of PAD images that weigh 0: training sets of nearby

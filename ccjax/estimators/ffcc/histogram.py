@@ -50,7 +50,11 @@ def local_absolute_deviation(image: Float[Array, "H W 3"], mask: Bool[Array, "H 
 
 
 def wrapped_histogram(
-    rgb: Float[Array, "P 3"], valid: Bool[Array, " P"], origin: Float[Array, "2"], bins: int, bin_size: float
+    rgb: Float[Array, "P 3"],
+    valid: Bool[Array, " P"],
+    origin: Float[Array, "2"],
+    bins: int,
+    bin_size: Float[Array, ""] | float,
 ) -> Float[Array, "bins bins"]:
     """Normalised histogram of the valid colours' log-chroma on the ``bins x bins`` torus.
 
@@ -76,7 +80,7 @@ def featurize(
     mask: Bool[Array, "H W"],
     origin: Float[Array, "2"],
     bins: int,
-    bin_size: float,
+    bin_size: Float[Array, ""] | float,
     minimum: float = MINIMUM_INTENSITY,
 ) -> Float[Array, "2 bins bins"]:
     """FFCC's two-channel histogram of an image: its usable pixels, and their local absolute

@@ -85,7 +85,7 @@ class FFCC(AbstractImageEstimator):
         filters: ``(2, n, n)`` the filters of the pixel and edge histograms.
         bias: ``(n, n)`` the bias map (a prior over the light's log-chroma).
         origin: ``(2,)`` log-chroma of bin ``(0, 0)``'s centre (fitted to the training lights).
-        bin_size: log-chroma width of a bin (static).
+        bin_size: ``()`` log-chroma width of a bin (fitted to the training lights' range).
         diagonal: variance added to the fitted covariance, in bins^2 (static).
         minimum: the smallest trusted channel value, 1.0 = saturation (static).
     """
@@ -93,7 +93,7 @@ class FFCC(AbstractImageEstimator):
     filters: Float[Array, "2 n n"]
     bias: Float[Array, "n n"]
     origin: Float[Array, "2"]
-    bin_size: float = eqx.field(static=True, default=BIN_SIZE)
+    bin_size: Float[Array, ""]
     diagonal: float = eqx.field(static=True, default=1.0)
     minimum: float = eqx.field(static=True, default=MINIMUM_INTENSITY)
     estimates_brightness: ClassVar[bool] = False
