@@ -51,12 +51,16 @@ def main() -> None:
     x, m = jnp.asarray(images), jnp.asarray(masks)
     run = jax.jit(jax.vmap(model))
     jax.block_until_ready(run(x, m))
-    best = np.inf
+    best, best_cpu = np.inf, np.inf
     for _ in range(3):
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         jax.block_until_ready(run(x, m))
-        best = min(best, time.perf_counter() - start)
-    print(f"inference: {args.images / best:,.0f} thumbnails/s ({1e3 * best / args.images:.3f} ms/image, 64 x 64)")
+        best, best_cpu = min(best, time.perf_counter() - start), min(best_cpu, time.process_time() - cpu)
+    # On a shared machine the wall clock counts other processes' time; CPU seconds do not.
+    print(
+        f"inference: {args.images / best:,.0f} thumbnails/s wall ({1e3 * best / args.images:.3f} ms/image, 64 x 64), "
+        f"{args.images / best_cpu:,.0f} thumbnails per CPU second"
+    )
 
 
 if __name__ == "__main__":
