@@ -23,7 +23,8 @@ from ccjax.estimators.ffcc import (
     local_absolute_deviation,
     wrapped_histogram,
 )
-from ccjax.estimators.ffcc.fitting import _from_latent, loss, preconditioner
+from ccjax.estimators.ffcc.fitting import from_latent, loss, preconditioner
+from ccjax.runs import store
 
 
 def _image(seed: int, height: int = 7, width: int = 9):
@@ -103,7 +104,7 @@ def test_preconditioned_regulariser_is_total_variation_plus_l2():
     rng = np.random.default_rng(7)
     n, tv, l2 = 8, 0.3, 0.02
     latent = rng.normal(size=(n, n)).astype(np.float32)
-    field = np.asarray(_from_latent(jnp.asarray(latent), preconditioner(n, tv, l2)), np.float64)
+    field = np.asarray(from_latent(jnp.asarray(latent), preconditioner(n, tv, l2)), np.float64)
     differences = np.sum((np.roll(field, -1, 0) - field) ** 2) + np.sum((np.roll(field, -1, 1) - field) ** 2)
     spatial = n**2 * (tv * differences / 8 + l2 * np.sum(field**2))
     assert spatial == pytest.approx(float(np.sum(latent.astype(np.float64) ** 2)), rel=1e-4)
@@ -159,8 +160,8 @@ def test_training_on_synthetic_scenes_beats_grey_world(tmp_path, default_world):
     posterior = jax.vmap(model.posterior)(test_images, test_masks)
     assert np.all(np.linalg.eigvalsh(np.asarray(posterior.covariance)) > 0)
     assert np.all((np.asarray(posterior.confidence) > 0) & (np.asarray(posterior.confidence) <= 1 + 1e-6))
-    path = training.save_trained(tmp_path / "ffcc.eqx", model, label="FFCC", camera="Canon EOS 5D Mark II")
-    loaded = training.load_model(path)
+    path = store.save_trained(tmp_path / "ffcc.eqx", model, label="FFCC", camera="Canon EOS 5D Mark II")
+    loaded = store.load_model(path)
     again = jax.vmap(loaded)(test_images, test_masks)
     np.testing.assert_allclose(np.asarray(again.illuminant), np.asarray(estimate.illuminant), rtol=1e-6)
 

@@ -11,7 +11,7 @@ Run::
 ``ROOT`` holds one folder per set (``cube_plus/``, ``nus8-<camera>/``) with ``groundtruth.csv``.
 It prints the per-set rows and the NUS-8 geometric means, writes ``docs/data/photographs.json``
 and rewrites the table between the markers of ``docs/photographs.md``. ``--models DIR`` writes
-each fold's trained model (``DIR/<set>/<label>-fold<k>.eqx``, :func:`ccjax.training.save_trained`).
+each fold's trained model (``DIR/<set>/<label>-fold<k>.eqx``, :func:`ccjax.runs.store.save_trained`).
 ``--quick``: the first 60 images of each set, for a smoke run.
 """
 
@@ -57,7 +57,7 @@ def evaluate_set(directory: pathlib.Path, methods, train, saturation: float, mod
     """One set's 3-fold run: ``{label: {mean, median, ..., ms_per_image, train_seconds}}``."""
     from ccjax.experiments.folders import evaluate_folder
     from ccjax.runs import store
-    from ccjax.training import save_trained
+    from ccjax.runs.store import save_trained
 
     camera = CAMERAS.get(directory.name)
     # World-based labels need the camera's curves: left out of sets without them.

@@ -29,7 +29,17 @@ from ccjax.estimators.ffcc.model import FFCC
 from ccjax.estimators.ffcc.vonmises import fit_von_mises, gaussian_nll
 from ccjax.estimators.neural.log_chroma import log_chroma
 
-__all__ = ["Hyperparameters", "TrainingRecord", "fit_origin", "histograms", "loss", "preconditioner", "train"]
+__all__ = [
+    "Hyperparameters",
+    "TrainingRecord",
+    "fit_grid",
+    "fit_origin",
+    "from_latent",
+    "histograms",
+    "loss",
+    "preconditioner",
+    "train",
+]
 
 
 FILL = 0.75
@@ -103,7 +113,8 @@ def _latent_fft(latent: Float[Array, "... n n"], scale: Float[Array, "... n n"])
     return spectrum * scale[..., : spectrum.shape[-1]].astype(spectrum.dtype)
 
 
-def _from_latent(latent: Float[Array, "... n n"], scale: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
+def from_latent(latent: Float[Array, "... n n"], scale: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
+    """The map whose preconditioned variables are ``latent`` (``scale``: its :func:`preconditioner`)."""
     return jnp.fft.irfft2(_latent_fft(latent, scale), s=latent.shape[-2:]).astype(latent.dtype)
 
 
@@ -193,7 +204,7 @@ def loss(
     """
     filters_latent, bias_latent = latent
     filters_fft = _latent_fft(filters_latent, scales[0])
-    bias = _from_latent(bias_latent, scales[1])
+    bias = from_latent(bias_latent, scales[1])
     n = bias.shape[0]
 
     def one(x_fft, target):
@@ -298,7 +309,7 @@ def train(
             h.memory,
         )
         losses.append(float(value))
-    filters = _from_latent(latent[0], scales[0])
-    bias = _from_latent(latent[1], scales[1])
+    filters = from_latent(latent[0], scales[0])
+    bias = from_latent(latent[1], scales[1])
     trained = FFCC(filters, bias, origin, bin_size=size, diagonal=h.diagonal, minimum=model.minimum)
     return trained, TrainingRecord([float(x) for x in np.asarray(losses)], time.perf_counter() - start)
