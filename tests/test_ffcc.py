@@ -54,7 +54,11 @@ def test_wrapped_histogram_matches_oracle():
 def test_featurize_counts_pixels_and_edges_above_the_minimum():
     image, mask = _image(2)
     origin = np.array([-1.0, -1.0], np.float32)
-    got = np.asarray(featurize(jnp.asarray(image), jnp.asarray(mask), jnp.asarray(origin), 16, 0.125, minimum=0.05))
+    got = np.asarray(
+        featurize(
+            jnp.asarray(image), jnp.asarray(mask), origin=jnp.asarray(origin), bins=16, bin_size=0.125, minimum=0.05
+        )
+    )
     edges = oracle.local_absolute_deviation(image, mask)
     for channel, values in enumerate((image.astype(np.float64), edges)):
         rgb = values.reshape(-1, 3)

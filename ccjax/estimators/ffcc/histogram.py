@@ -78,6 +78,7 @@ def wrapped_histogram(
 def featurize(
     image: Float[Array, "H W 3"],
     mask: Bool[Array, "H W"],
+    *,
     origin: Float[Array, "2"],
     bins: int,
     bin_size: Float[Array, ""] | float,

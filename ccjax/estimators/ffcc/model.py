@@ -114,7 +114,7 @@ class FFCC(AbstractImageEstimator):
     def histogram(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "2 n n"]:
         """The image's two-channel histogram on this model's grid
         (:func:`ccjax.estimators.ffcc.histogram.featurize`)."""
-        return featurize(image, mask, self.origin, self.bins, self.bin_size, self.minimum)
+        return featurize(image, mask, origin=self.origin, bins=self.bins, bin_size=self.bin_size, minimum=self.minimum)
 
     def fit_histogram(self, histogram: Float[Array, "2 n n"]) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:
         """The von Mises fit to the softmax of the scores of ``histogram``: ``(mean (2,),
