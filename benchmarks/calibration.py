@@ -2,7 +2,7 @@
 
 Prints, with compiled (warm) functions on this machine:
 * one camera — 3 x 101 sensor unknowns plus F's a0, a1, about 612 measurements (the thesis'
-  experiment) — with ccjax.fit_sensors (jaxopt ProjectedGradient + polish, vmapped over channels)
+  experiment) — with ccjax.calibration.fit_sensors (jaxopt ProjectedGradient + polish, vmapped over channels)
   and with the SciPy oracle (lsq_linear, two passes per channel, as in tests/calibration_oracle.py);
 * 100 cameras (synthetic experiments for the embedded/external cameras, cycled, each with its own
   noise) as ONE vmapped batch with ccjax.calibration.fit_sensors_batch;

@@ -25,17 +25,15 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and editors
         AbstractImageEstimator,
         AbstractSurfaceEstimator,
         Estimate,
-        Estimator,
         Status,
         estimate_batch,
     )
-    from ccjax.runs.store import fit
+    from ccjax.runs.store import fit, load_model
     from ccjax.scenes import Scenes, ShotNoise, Specular, sample
     from ccjax.spectra import WAVELENGTHS
-    from ccjax.training import load_model
     from ccjax.world import World
 
-__version__ = "0.1.0"
+from ccjax._version import __version__ as __version__
 
 _SOURCES = {
     "WAVELENGTHS": "ccjax.spectra",
@@ -44,7 +42,6 @@ _SOURCES = {
     "AbstractSurfaceEstimator": "ccjax.estimators",
     "Camera": "ccjax.camera",
     "Estimate": "ccjax.estimators",
-    "Estimator": "ccjax.estimators",
     "Scenes": "ccjax.scenes",
     "ShotNoise": "ccjax.scenes",
     "Specular": "ccjax.scenes",
@@ -54,7 +51,7 @@ _SOURCES = {
     "estimate": "ccjax._estimate",
     "estimate_batch": "ccjax.estimators",
     "fit": "ccjax.runs.store",
-    "load_model": "ccjax.training",
+    "load_model": "ccjax.runs.store",
     "sample": "ccjax.scenes",
 }
 """The module each top-level name comes from."""
@@ -83,7 +80,6 @@ __all__ = [
     "AbstractSurfaceEstimator",
     "Camera",
     "Estimate",
-    "Estimator",
     "Scenes",
     "ShotNoise",
     "Specular",

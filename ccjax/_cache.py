@@ -9,6 +9,7 @@ cache file can be read without running code from it.
 
 from __future__ import annotations
 
+import errno
 import functools
 import hashlib
 import io
@@ -23,6 +24,8 @@ from typing import Any, BinaryIO, TypeVar
 import equinox as eqx
 import jax
 import numpy as np
+
+from ccjax._version import __version__
 
 FORMAT_VERSION = 1
 """Version of the cache and model-file layout; a mismatch is rebuilt (cache) or refused (models)."""
@@ -125,12 +128,55 @@ def content_key(kind: str, *parts: Any) -> str:
     return digest.hexdigest()[:24]
 
 
+_NO_HARD_LINKS = (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK)
+"""``os.link`` errors of file systems without hard links (FAT, some network mounts)."""
+
+
+def put_in_place(temporary: str | os.PathLike, path: str | os.PathLike, *, overwrite: bool) -> None:
+    """Move a finished temporary file (in ``path``'s folder) to ``path``.
+
+    With ``overwrite`` it replaces whatever is at ``path`` (``os.replace``: a symbolic link there
+    is replaced, never followed). Without, a hard link makes the new name, which fails rather
+    than replace a file that appeared since the command's check; where the file system has no
+    hard links, ``path`` is checked again just before the rename.
+
+    Arguments:
+        temporary: the complete file (removed in every case).
+        path: its final name.
+        overwrite: whether a file at ``path`` may be replaced.
+
+    Returns:
+        None.
+
+    Raises:
+        FileExistsError: without ``overwrite``, ``path`` exists (the message names it).
+    """
+    appeared = FileExistsError(
+        errno.EEXIST, "appeared while ccjax was working and is kept (use --overwrite to replace it)", str(path)
+    )
+    try:
+        if overwrite:
+            os.replace(temporary, path)
+            return
+        try:
+            os.link(temporary, path)
+        except FileExistsError:
+            raise appeared from None
+        except OSError as error:
+            if error.errno not in _NO_HARD_LINKS:
+                raise
+            if os.path.lexists(path):
+                raise appeared from None
+            os.replace(temporary, path)
+    finally:
+        Path(temporary).unlink(missing_ok=True)
+
+
 def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], object], *, replace: bool = True) -> None:
     """Write ``blob`` to ``path`` through a temporary file in the same folder put in place
-    (:func:`ccjax.io.outputs.put_in_place`), so readers never see a partial file; the file gets
+    (:func:`put_in_place`), so readers never see a partial file; the file gets
     the usual permissions (umask). Without ``replace`` an existing ``path`` is kept
     (``FileExistsError``). ``blob`` may be a function that writes to the open binary file."""
-    from ccjax.io.outputs import put_in_place
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -234,8 +280,6 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any], *, re
     Returns:
         ``path``.
     """
-    from ccjax import __version__
-
     path = Path(path)
     buffer = io.BytesIO()
     eqx.tree_serialise_leaves(buffer, model)

@@ -1,8 +1,10 @@
-"""(r,g) chromaticity (absolute and scale-free), which pixels have one, its inverse and (r,g)
-binning: the one implementation of each.
+"""(r,g) chromaticity (:func:`rg`, and :func:`rg_numpy` for fit-time NumPy code), which pixels
+carry one, its inverse and (r,g) binning: the one implementation of each.
 
-``r = R / (R+G+B)``, ``g = G / (R+G+B)`` (Barnard 1999 §1.2); a pixel whose sum is not positive
-has no chromaticity and maps to the achromatic point (1/3, 1/3), never to NaN.
+``r = R / (R+G+B)``, ``g = G / (R+G+B)`` (Barnard 1999 §1.2). One rule at black: a pixel whose sum
+is not positive has no chromaticity and maps to the achromatic point (1/3, 1/3), never to NaN.
+Any positive sum has one, however small, so the chromaticity does not depend on the scene's scale
+(a scene times 1e-12 has the same chromaticities).
 """
 
 from __future__ import annotations
@@ -12,21 +14,23 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 TINY = 1e-12
-"""Sums at or below this have no chromaticity."""
+"""The one small number: a floor for divisors and, relative to a scene's brightest pixel, the
+level at or below which a pixel is black (:func:`valid_pixels`)."""
 
 
 def rg(rgb: Float[ArrayLike, "... 3"]) -> Float[Array, "... 2"]:
-    """(r,g) chromaticity of RGB (traceable; ``(1/3, 1/3)`` where ``R+G+B <= TINY``).
+    """(r,g) chromaticity of RGB (traceable and differentiable; ``(1/3, 1/3)`` where ``R+G+B`` is not
+    positive).
 
     Arguments:
-        rgb: ``(..., 3)`` non-negative RGB.
+        rgb: ``(..., 3)`` non-negative RGB, on any scale.
 
     Returns:
         ``(..., 2)`` chromaticities.
     """
     rgb = jnp.asarray(rgb)
     total = jnp.sum(rgb, axis=-1, keepdims=True)
-    valid = total > TINY
+    valid = total > 0
     return jnp.where(valid, rgb[..., :2] / jnp.where(valid, total, 1.0), 1.0 / 3.0)
 
 
@@ -50,14 +54,6 @@ def valid_pixels(rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Arra
     return mask & (total > TINY * brightest)
 
 
-def chromaticity(rgb: Float[Array, "... 3"]) -> Float[Array, "... 2"]:
-    """Scale-free (r,g) of each pixel: :func:`rg` of the pixel divided by its largest
-    channel, so that a dark but valid pixel (a scene scaled by 1e-12) is not taken for black by
-    ``rg``'s absolute threshold. Black pixels give the achromatic point, as ``rg``."""
-    peak = jnp.max(rgb, axis=-1, keepdims=True)
-    return rg(rgb / jnp.where(peak > 0, peak, 1.0))
-
-
 def rg_to_rgb(chromaticity: Float[ArrayLike, "... 2"]) -> Float[Array, "... 3"]:
     """The RGB of unit sum with chromaticity ``(r, g)``: ``(r, g, 1 - r - g)``.
 
@@ -72,7 +68,8 @@ def rg_to_rgb(chromaticity: Float[ArrayLike, "... 2"]) -> Float[Array, "... 3"]:
 
 
 def rg_numpy(rgb: np.ndarray) -> np.ndarray:
-    """:func:`rg` in NumPy at the input's precision (for fit-time code that runs outside JAX).
+    """:func:`rg` in NumPy at the input's precision (for fit-time code that runs outside JAX), the
+    same arithmetic and the same rule at black.
 
     Arguments:
         rgb: ``(..., 3)`` non-negative RGB.
@@ -82,7 +79,7 @@ def rg_numpy(rgb: np.ndarray) -> np.ndarray:
     """
     rgb = np.asarray(rgb)
     total = rgb.sum(axis=-1, keepdims=True)
-    valid = total > TINY
+    valid = total > 0
     return np.where(valid, rgb[..., :2] / np.where(valid, total, 1.0), 1.0 / 3.0)
 
 

@@ -128,43 +128,43 @@ def reproduction_angular_error(
 SUMMARIES = ("rms", "mean", "median", "trimean", "best25", "worst25", "p95", "max")
 
 
-def summarise(errors, statistic: str = "rms") -> float:
+def summarise(errors, summary: str = "rms") -> float:
     """Summarise per-scene errors.
 
     Arguments:
         errors: 1-D array of per-scene errors (non-empty, finite).
-        statistic: ``rms`` (the thesis' aggregate, §4.2), ``mean``, ``median``, ``trimean``
+        summary: ``rms`` (the thesis' aggregate, §4.2), ``mean``, ``median``, ``trimean``
             (``(Q1 + 2 Q2 + Q3) / 4``), ``best25`` / ``worst25`` (means of the lowest / highest
             quarter), ``p95`` (the 95th percentile, linear interpolation), ``max``.
 
     Returns:
-        The statistic, a Python float.
+        The summary, a Python float.
     """
     errors = np.asarray(errors, dtype=np.float64).ravel()
     if errors.size == 0:
         raise ValueError("errors: empty")
     if not np.all(np.isfinite(errors)):
         raise ValueError("errors: contains NaN or infinite values")
-    if statistic == "rms":
+    if summary == "rms":
         return float(np.sqrt(np.mean(errors**2)))
-    if statistic == "mean":
+    if summary == "mean":
         return float(np.mean(errors))
-    if statistic == "median":
+    if summary == "median":
         return float(np.median(errors))
-    if statistic == "p95":
+    if summary == "p95":
         return float(np.percentile(errors, 95))
-    if statistic == "trimean":
+    if summary == "trimean":
         q1, q2, q3 = np.percentile(errors, [25, 50, 75])
         return float((q1 + 2 * q2 + q3) / 4)
     ordered = np.sort(errors)
     quarter = max(1, int(round(errors.size / 4)))
-    if statistic == "best25":
+    if summary == "best25":
         return float(ordered[:quarter].mean())
-    if statistic == "worst25":
+    if summary == "worst25":
         return float(ordered[-quarter:].mean())
-    if statistic == "max":
+    if summary == "max":
         return float(ordered[-1])
-    raise ValueError(f"statistic: expected one of {SUMMARIES}, got {statistic!r}")
+    raise ValueError(f"summary: expected one of {SUMMARIES}, got {summary!r}")
 
 
 FIELD_STATISTICS = ("mean", "median", "trimean", "best25", "worst25", "p95", "max")
@@ -174,7 +174,7 @@ _BOOTSTRAPPED = {"mean": np.mean, "median": np.median}
 
 
 def bootstrap_interval(
-    errors, statistic: str = "mean", *, level: float = 0.95, resamples: int = 2000, seed: int = 0
+    errors, summary: str = "mean", *, level: float = 0.95, resamples: int = 2000, seed: int = 0
 ) -> tuple[float, float]:
     """Bootstrap confidence interval of the mean or median of per-image errors.
 
@@ -186,7 +186,7 @@ def bootstrap_interval(
 
     Arguments:
         errors: 1-D per-image errors (non-empty, finite).
-        statistic: ``"mean"`` or ``"median"``.
+        summary: ``"mean"`` or ``"median"``.
         level: the coverage, in (0, 1).
         resamples: bootstrap resamples (at least 100).
         seed: seed of the resampling.
@@ -196,17 +196,17 @@ def bootstrap_interval(
     """
     from statistics import NormalDist
 
-    if statistic not in _BOOTSTRAPPED:
-        raise ValueError(f"statistic: expected one of {tuple(_BOOTSTRAPPED)}, got {statistic!r}")
+    if summary not in _BOOTSTRAPPED:
+        raise ValueError(f"summary: expected one of {tuple(_BOOTSTRAPPED)}, got {summary!r}")
     if not 0 < level < 1:
         raise ValueError(f"level: expected a coverage in (0, 1), got {level!r}")
     if int(resamples) != resamples or resamples < 100:
         raise ValueError(f"resamples: expected an integer of at least 100, got {resamples!r}")
     errors = np.asarray(errors, dtype=np.float64).ravel()
-    observed = summarise(errors, statistic)  # validates: non-empty, finite
+    observed = summarise(errors, summary)  # validates: non-empty, finite
     if np.all(errors == errors[0]):
         return observed, observed
-    function, n = _BOOTSTRAPPED[statistic], errors.size
+    function, n = _BOOTSTRAPPED[summary], errors.size
     rng = np.random.default_rng(seed)
     # Resample in chunks of at most ~4 million values: bounded memory on large image sets.
     chunk = max(1, 4_000_000 // n)
@@ -220,8 +220,8 @@ def bootstrap_interval(
     # Bias correction: mid-rank share below the observed value (ties count half), kept off 0 and 1.
     below = (np.sum(draws < observed) + 0.5 * np.sum(draws == observed)) / draws.size
     z0 = normal.inv_cdf(float(np.clip(below, 0.5 / draws.size, 1 - 0.5 / draws.size)))
-    # Acceleration from the jackknife (leave-one-out) values of the statistic.
-    if statistic == "mean":
+    # Acceleration from the jackknife (leave-one-out) values of the summary.
+    if summary == "mean":
         jackknife = (errors.sum() - errors) / (n - 1) if n > 1 else errors
     else:
         # Leaving out sorted element i shifts the remaining elements at positions >= i by one.
@@ -252,7 +252,7 @@ def error_statistics(errors, *, level: float = 0.95, resamples: int = 2000, seed
         and ``"mean_low"``, ``"mean_high"``, ``"median_low"``, ``"median_high"`` (the intervals).
     """
     row = {name: summarise(errors, name) for name in FIELD_STATISTICS}
-    for statistic in _BOOTSTRAPPED:
-        low, high = bootstrap_interval(errors, statistic, level=level, resamples=resamples, seed=seed)
-        row[f"{statistic}_low"], row[f"{statistic}_high"] = low, high
+    for summary in _BOOTSTRAPPED:
+        low, high = bootstrap_interval(errors, summary, level=level, resamples=resamples, seed=seed)
+        row[f"{summary}_low"], row[f"{summary}_high"] = low, high
     return row

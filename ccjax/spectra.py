@@ -91,25 +91,6 @@ def resample(
     return out if layout == "columns" else out.T
 
 
-def chromaticity(rgb: np.ndarray) -> np.ndarray:
-    """(r, g) chromaticity ``(R, G) / (R + G + B)`` of NumPy RGBs, shape ``(..., 3) -> (..., 2)``.
-
-    Arguments:
-        rgb: ``(..., 3)`` RGBs.
-
-    Returns:
-        ``(..., 2)`` chromaticities.
-
-    A NumPy helper for loaders and plots, kept for its callers. New code uses
-    :func:`ccjax._colour.rg_numpy` (or the jit-able :func:`ccjax.metrics.rg`), which agrees wherever
-    ``R+G+B > 1e-12``; here a black RGB gives ``(0, 0)`` rather than the achromatic ``(1/3, 1/3)``,
-    which is why this is not an alias of it (the numbers printed from it must not move).
-    """
-    rgb = np.asarray(rgb, dtype=np.float64)
-    total = rgb.sum(axis=-1, keepdims=True)
-    return rgb[..., :2] / np.where(total > 0, total, 1.0)
-
-
 def _check_kind(kind) -> None:
     if kind not in KINDS:
         raise ValueError(

@@ -802,7 +802,7 @@ TABLE_9_1 = {
 
 _GAMUT = "gamut"  # in CHECKS: every gamut-mapping row of the table (labels containing CRULE)
 
-# The thesis' claims on Tables 7.2, 8.2 and 8.3 (issue 13's acceptance; spec ch08-12 §10),
+# The thesis' claims on Tables 7.2, 8.2 and 8.3 (spec ch08-12 §10),
 # checked by ``ccjax reproduce`` on our values and printed ok/MISS. Kinds:
 # ("less", a, b, column): a < b; ("ratio", a, b, column, f): a <= f * b;
 # ("best", rows, "gamut", column): every one of ``rows`` beats every other gamut row;

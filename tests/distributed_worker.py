@@ -118,8 +118,9 @@ def sweep_part(world, models, mesh, out) -> None:
     import jax
     import numpy as np
 
-    from ccjax.experiments.sweeps import scene_errors, sweep
+    from ccjax.experiments.sweeps import sweep
     from ccjax.runs import hosts
+    from ccjax.runs.engine import scene_errors
     from ccjax.scenes import SceneTables, sample_batch, sweep_keys
 
     key = jax.random.key(7)

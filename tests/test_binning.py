@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from small_world import small_world
 
-from ccjax import scenes
+from ccjax import _colour, scenes
 from ccjax.estimators import registry
 from ccjax.estimators.correlation import binning
 
@@ -50,11 +50,9 @@ def _rg(rgb: np.ndarray) -> np.ndarray:
 def test_chromaticity_matches_the_ratio_at_every_scale():
     rgb = np.random.default_rng(0).uniform(0.01, 1.0, (200, 3)).astype(np.float32)
     for scale in (1.0, *SCALES, 1e-30):
-        got = np.asarray(binning.chromaticity(jnp.asarray(rgb * np.float32(scale))), np.float64)
+        got = np.asarray(_colour.rg(jnp.asarray(rgb * np.float32(scale))), np.float64)
         np.testing.assert_allclose(got, _rg(rgb), rtol=0, atol=1e-6)
-    np.testing.assert_array_equal(
-        binning.chromaticity(jnp.zeros((2, 3), jnp.float32)), np.full((2, 2), 1 / 3, np.float32)
-    )
+    np.testing.assert_array_equal(_colour.rg(jnp.zeros((2, 3), jnp.float32)), np.full((2, 2), 1 / 3, np.float32))
 
 
 def test_bins_do_not_depend_on_the_scale(surfaces):
@@ -70,13 +68,13 @@ def test_black_is_relative_to_the_brightest_pixel():
     rgb = jnp.asarray([[0.5, 0.4, 0.3], [1e-14, 1e-14, 1e-14], [0.0, 0.0, 0.0], [1e-3, 2e-3, 1e-3]], jnp.float32)
     mask = jnp.ones(4, bool)
     for scale in (1.0, *SCALES):
-        valid = binning.valid_pixels(rgb * jnp.float32(scale), mask)
+        valid = _colour.valid_pixels(rgb * jnp.float32(scale), mask)
         # 3e-14 is 2.5e-14 of the brightest (1.2): black at every scale; 4e-3 is evidence at every scale.
         np.testing.assert_array_equal(valid, [True, False, False, True])
-    assert not np.any(binning.valid_pixels(jnp.zeros((4, 3), jnp.float32), mask))
+    assert not np.any(_colour.valid_pixels(jnp.zeros((4, 3), jnp.float32), mask))
     # The brightest pixel is taken over the masked-in pixels only.
     np.testing.assert_array_equal(
-        binning.valid_pixels(rgb * 1e-12, jnp.asarray([False, True, True, True])), [False, True, False, True]
+        _colour.valid_pixels(rgb * 1e-12, jnp.asarray([False, True, True, True])), [False, True, False, True]
     )
 
 

@@ -15,8 +15,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ccjax.estimators import cip, registry
+from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status
+from ccjax.estimators.gamut import cip
 from ccjax.scenes import sample
 
 PAD = 8

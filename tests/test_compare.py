@@ -91,7 +91,7 @@ def test_padded_sizes_never_cross_an_engine_budget(default_world):
     cip = gamut.cip.fit(default_world, "MV", coarse=8, fine=9)
     surfaces = [1, 4, 8, 16, 32, 33, 48, 64, 128, 256, 1024]
     for models in ([engine], [engine, cip]):
-        sizes = sweeps.padded_sizes(surfaces, models)
+        sizes = synthetic.padded_sizes(surfaces, models)
         for n, size in sizes.items():
             assert size >= n
             for budget in budgets:
@@ -99,16 +99,16 @@ def test_padded_sizes_never_cross_an_engine_budget(default_world):
         assert sizes[33] == sizes[48] == 48 and sizes[64] == sizes[128] == 128
         assert sizes[256] == 256 and sizes[1024] == 1024
     # Below the smallest budget the 3-D engine reads only the usable observations: one program.
-    alone = sweeps.padded_sizes(surfaces, [engine])
+    alone = synthetic.padded_sizes(surfaces, [engine])
     assert {alone[n] for n in (1, 4, 8, 16, 32)} == {32}
     # ... in scenes of at least COUNTED_SLOTS slots; below, padding costs what it adds.
-    assert sweeps.padded_sizes([4, 8, 12], [engine]) == {4: 8, 8: 8, 12: 12}
+    assert synthetic.padded_sizes([4, 8, 12], [engine]) == {4: 8, 8: 8, 12: 12}
     # CIP reads every slot: buckets within a factor MAX_PADDING.
-    mixed = sweeps.padded_sizes(surfaces, [engine, cip])
-    assert all(size <= sweeps.MAX_PADDING * n for n, size in mixed.items())
+    mixed = synthetic.padded_sizes(surfaces, [engine, cip])
+    assert all(size <= synthetic.MAX_PADDING * n for n, size in mixed.items())
     assert mixed[1] == 1 and mixed[4] == mixed[8] == 8 and mixed[16] == mixed[32] == 32
     # Without a model that branches on the scene size nothing is padded.
-    assert sweeps.padded_sizes([4, 8], []) == {4: 4, 8: 8}
+    assert synthetic.padded_sizes([4, 8], []) == {4: 4, 8: 8}
 
 
 @pytest.mark.slow  # compiles the gamut engine for three scene sizes (about 40 s under load)
@@ -119,7 +119,7 @@ def test_padded_sweep_equals_unpadded(default_world, monkeypatch, tmp_path):
     counts = (4, 8, 32)
     key = jax.random.key(3)
     models = [store.fit(method, default_world) for method in methods]
-    assert {sweeps.padded_sizes(counts, models)[n] for n in counts} == {32}
+    assert {synthetic.padded_sizes(counts, models)[n] for n in counts} == {32}
     padded = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)
     monkeypatch.setattr(synthetic, "padded_sizes", lambda surfaces, models: {n: n for n in surfaces})
     plain = sweeps.sweep(default_world, list(methods), counts, 24, key, progress=False)

@@ -249,8 +249,6 @@ def test_entries_state_grammar_kind_and_traceability():
     for entry in entries:
         assert entry.pattern.fullmatch(entry.example), entry
         assert entry.input_kind in ("surfaces", "image") and entry.grammar and entry.description
-        example, description = entry  # the older (example, description) pairs still unpack
-        assert (example, description) == (entry.example, entry.description)
     kinds = {entry.example: entry.input_kind for entry in entries}
     assert kinds["grey-edge-1-6-2"] == "image" and kinds["GW"] == "surfaces"
     traceable = {entry.example: entry.traceable_fit for entry in entries}

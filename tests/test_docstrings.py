@@ -1,5 +1,6 @@
-"""Every public name of ccjax is documented: each name in the ``__all__`` of ccjax and of each of its
-subpackages has a docstring with the sections its kind needs.
+"""Every public name of ccjax is documented: each name in the ``__all__`` of ccjax, of each of its
+subpackages and of any other module that declares one has a docstring with the sections its kind
+needs (every package declares ``__all__``: tests/test_house_rules.py).
 
 The rule (checked on the object the name refers to; jit wrappers are unwrapped):
 
@@ -22,7 +23,9 @@ import ast
 import dataclasses
 import enum
 import importlib
+import importlib.util
 import inspect
+import pathlib
 import pkgutil
 import textwrap
 import types
@@ -43,10 +46,16 @@ ATTRIBUTES = ("Attributes:", "Arguments:")
 
 
 def packages() -> list[str]:
-    """ccjax and every subpackage (a folder with ``__init__.py``), imported."""
+    """ccjax, every subpackage (a folder with ``__init__.py``) and every other module that declares
+    ``__all__`` (read from its source, so modules that run on import, ``__main__``, are not imported)."""
     names = ["ccjax"]
     for info in pkgutil.walk_packages(ccjax.__path__, "ccjax."):
         if info.ispkg:
+            names.append(info.name)
+            continue
+        spec = importlib.util.find_spec(info.name)
+        origin = spec.origin if spec is not None else None
+        if origin and "\n__all__" in pathlib.Path(origin).read_text(encoding="utf-8"):
             names.append(info.name)
     return names
 
@@ -161,7 +170,7 @@ def offenders() -> tuple[dict[str, str], int, int]:
 
 def test_every_public_name_is_documented():
     found, checked, distinct = offenders()
-    print(f"checked {checked} public names ({distinct} distinct objects) in {len(packages())} packages")
+    print(f"checked {checked} public names ({distinct} distinct objects) in {len(packages())} packages and modules")
     pending = sorted(set(found) & PENDING)
     if pending:
         print(f"{len(pending)} pending: " + ", ".join(pending))

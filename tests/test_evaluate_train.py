@@ -59,13 +59,13 @@ def _stem(path):
 def test_trained_models_never_see_the_fold_they_score(setup, image_set, monkeypatch, capsys):
     folder, truth = image_set
     seen = []  # the names of every training set handed to the optimiser, observed from outside
-    original = fold_module.fit_to_examples
+    original = fold_module.train_model
 
     def spy(model, examples, *args, **kwargs):
         seen.append(set(examples.names))
         return original(model, examples, *args, **kwargs)
 
-    monkeypatch.setattr(fold_module, "fit_to_examples", spy)
+    monkeypatch.setattr(fold_module, "train_model", spy)
     assert _evaluate(folder, truth, setup / "r.json") == 0
     out = capsys.readouterr().out
     report = json.loads((setup / "r.json").read_text())

@@ -11,6 +11,7 @@ import pytest
 
 from ccjax import cli, experiments
 from ccjax.experiments import reproduce, sweep
+from ccjax.runs import engine
 
 SIMPLE = ["NOTHING", "AVE-ILLUM", "GW", "DB-GW", "RETINEX"]
 
@@ -38,7 +39,7 @@ def test_sweep_rows_and_outputs(small_sweep, tmp_path):
     rows = small_sweep.rows(("rms", "median"))
     # NOTHING is a chromaticity method: no RGB-valued statistics.
     assert {r["statistic"] for r in rows if r["method"] == "NOTHING"} == {"angular", "rg", "map_rg"}
-    assert {r["statistic"] for r in rows if r["method"] == "GW"} == set(experiments.STATISTICS)
+    assert {r["statistic"] for r in rows if r["method"] == "GW"} == set(engine.STATISTICS)
     gw_rms = next(
         r
         for r in rows
@@ -157,7 +158,7 @@ def test_cli_errors_are_clear(capsys):
 def test_cli_reproduce_json(barnard_world, capsys):
     assert cli.main(["reproduce", "4.2", "--methods", "GW", "--scenes", "200", "--json", "--no-progress"]) == 0
     payload = json.loads(capsys.readouterr().out)
-    assert payload["table"] == "4.2" and {r["column"] for r in payload["rows"]} == set(experiments.STATISTICS)
+    assert payload["table"] == "4.2" and {r["column"] for r in payload["rows"]} == set(engine.STATISTICS)
     assert all(set(r) >= {"method", "column", "ours", "thesis"} for r in payload["rows"])
 
 

@@ -1,5 +1,5 @@
 """The image pipeline end to end: cached worlds, fold worlds, synthetic Mondrians, the image
-commands (estimate, correct, evaluate) and the ccjax.images re-exports."""
+commands (estimate, correct, evaluate)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 from image_files import bad_files
 from small_world import small_world
 
-from ccjax import cli, correction, images, io, preprocessing, scenes
+from ccjax import cli, io, preprocessing, scenes
 from ccjax.experiments import evaluation
 from ccjax.io import LinearImage
 from ccjax.metrics import angular_error
@@ -33,16 +33,6 @@ def cache(tmp_path, monkeypatch):
 
 # ---------------------------------------------------------------------------------------------
 # Cache and folds
-
-
-def test_old_image_paths_are_the_new_objects():
-    assert images.read_image is io.read_image and images.LinearImage is io.LinearImage
-    assert images.surfaces is preprocessing.surfaces and images.Preprocessing is preprocessing.Preprocessing
-    assert images.correct is correction.correct and images.run_images is evaluation.run_images
-    assert images.cached_fit is store.fit and images.cached_world is store.world
-    from ccjax import _cache
-
-    assert images.cache_directory is _cache.cache_directory
 
 
 def test_fold_worlds_learn_only_other_folds(world):

@@ -74,10 +74,3 @@ def test_small_experiment():
     for row in rows.values():
         assert row["n1"] + row["n2"] + row["n3"] <= 32 and 0 <= row["score3"] <= 1
     assert -1 <= result.spearman() <= 1
-
-
-def test_old_path_re_exports_the_experiment():
-    import ccjax.indexing as old
-
-    for name in ("rg_histogram", "intersection", "correct_ranks", "rank_scores", "run_indexing", "IndexingResult"):
-        assert getattr(old, name) is getattr(indexing, name)

@@ -117,7 +117,7 @@ def test_summaries():
     assert metrics.summarise(errors, "best25") == pytest.approx(1.5)
     assert metrics.summarise(errors, "worst25") == pytest.approx(8.5)
     assert metrics.summarise(errors, "max") == 10.0
-    with pytest.raises(ValueError, match="statistic"):
+    with pytest.raises(ValueError, match="summary"):
         metrics.summarise(errors, "mode")
     with pytest.raises(ValueError, match="errors"):
         metrics.summarise([np.nan], "rms")

@@ -17,7 +17,7 @@ from ccjax.calibration import experiment, files, plots
 from ccjax.calibration.robustness import Robustness
 from ccjax.cli import indexing, sharpen
 from ccjax.experiments import plots as experiment_plots
-from ccjax.io import writing
+from ccjax.io import files as io_files
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -137,7 +137,7 @@ def test_interrupted_plot_keeps_the_old_file_and_leaves_no_temporary(tmp_path, m
     path = tmp_path / "p.png"
     path.write_bytes(b"old plot")
     write = {
-        "write_figure": lambda: writing.write_figure(_figure(), path, dpi=50),
+        "write_figure": lambda: io_files.write_figure(_figure(), path, dpi=50),
         "plot_world": lambda: experiment_plots.plot_world(small_world(), path),
         "plot_robustness": lambda: plots.plot_robustness(_robustness(), path),
     }[draw]
@@ -151,13 +151,13 @@ def test_interrupted_plot_keeps_the_old_file_and_leaves_no_temporary(tmp_path, m
 
 
 def test_write_figure_takes_the_format_from_the_suffix_or_a_file_object(tmp_path):
-    writing.write_figure(_figure(), tmp_path / "p.svg")
+    io_files.write_figure(_figure(), tmp_path / "p.svg")
     assert b"<svg" in (tmp_path / "p.svg").read_bytes()[:500]
-    writing.write_figure(_figure(), tmp_path / "p.PDF")
+    io_files.write_figure(_figure(), tmp_path / "p.PDF")
     assert (tmp_path / "p.PDF").read_bytes().startswith(b"%PDF")
     buffer = io.BytesIO()
-    writing.write_figure(_figure(), buffer)
+    io_files.write_figure(_figure(), buffer)
     assert buffer.getvalue().startswith(PNG)
     with pytest.raises(ValueError, match="no suffix"):
-        writing.write_figure(_figure(), tmp_path / "p")
+        io_files.write_figure(_figure(), tmp_path / "p")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.PDF", "p.svg"]

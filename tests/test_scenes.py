@@ -17,6 +17,7 @@ from ccjax.scenes import (
     scene_keys,
     sweep_keys,
 )
+from ccjax.scenes import options as scene_options
 
 
 @pytest.mark.parametrize("n_surfaces", [1, 8, 64, 65, 1024, 1993])
@@ -156,7 +157,7 @@ def test_non_integer_counts_are_refused(default_world, bad):
     """A clear ValueError naming the count (under the suite's beartype hooks a non-integer is
     refused even earlier, by the ``SupportsIndex`` annotation of ``sample``)."""
     with pytest.raises(ValueError, match="n_surfaces: expected an integer in \\[1, 9\\]"):
-        scenes.require_count(bad, "n_surfaces", 1, 9)
+        scene_options.require_count(bad, "n_surfaces", 1, 9)
     with pytest.raises((ValueError, TypeError), match=r"n_surfaces|n_scenes"):
         sample(jax.random.key(0), default_world, 2, bad)
 
@@ -319,9 +320,9 @@ def test_material_options_are_validated(default_world):
     with pytest.raises(ValueError, match="metals"):
         SceneTables.from_world(default_world, metals=-np.ones((2, 101)))
     with pytest.raises(ValueError, match="metallic: expected True, None or a Metallic"):
-        scenes.resolve_materials("yes", None)
+        scene_options.resolve_materials("yes", None)
     with pytest.raises(ValueError, match="fluorescent: expected True, None or a Fluorescent"):
-        scenes.resolve_materials(None, scenes.Specular())
+        scene_options.resolve_materials(None, scenes.Specular())
 
 
 def test_mondrian_materials(default_world, material_tables):

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ccjax import sharpening as sh
@@ -94,6 +94,7 @@ def small_world(default_world) -> World:
 
 @settings(max_examples=10, deadline=None)
 @given(st.integers(0, 10_000))
+@example(895)  # a transform of condition number 1.5e4: float32 normal equations fail there
 def test_best_linear_and_diagonal_match_numpy(seed):
     train, canonical = random_database(seed)
     source = train[0]
@@ -405,17 +406,6 @@ def test_sharpened_passes_the_status_of_the_run_that_answered(small_world):
     assert int(empty.status) == Status.NO_DATA and not bool(empty.ok)
     assert int(full.status) == Status.ESTIMATED and bool(full.ok) and not bool(reverted)
     np.testing.assert_array_equal(np.asarray(model(rgb, jnp.ones(8, bool)).illuminant), np.asarray(full.illuminant))
-
-
-def test_moved_names_resolve_from_the_old_path_with_a_warning():
-    from ccjax.experiments import chapter5_report
-
-    with pytest.warns(DeprecationWarning, match="chapter5_report"):
-        assert sh.reproduce_5_1 is chapter5_report.reproduce_5_1
-    with pytest.warns(DeprecationWarning, match="chapter5"):
-        assert sh.chapter5_errors is chapter5.chapter5_errors
-    with pytest.raises(AttributeError):
-        _ = sh.no_such_name
 
 
 def test_chapter5_scenes_are_the_sampled_scenes(small_world):

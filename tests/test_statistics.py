@@ -61,7 +61,7 @@ def test_intervals_are_seeded_and_degenerate_sets_are_finite(errors):
     for bad, message in (([], "empty"), ([1.0, np.nan], "NaN")):
         with pytest.raises(ValueError, match=message):
             metrics.bootstrap_interval(bad)
-    with pytest.raises(ValueError, match="statistic"):
+    with pytest.raises(ValueError, match="summary"):
         metrics.bootstrap_interval(errors, "trimean")
     with pytest.raises(ValueError, match="level"):
         metrics.bootstrap_interval(errors, level=1.5)

@@ -111,8 +111,8 @@ def test_cross_validation_never_trains_on_the_scored_fold(start, examples, tmp_p
     assert "pooled" in result.table()
 
     # Model files: the house format round trip.
-    path = training.save_trained(tmp_path / "model.eqx", models[0], label=LABEL, camera="Canon EOS 5D Mark II")
-    loaded = training.load_model(path)
+    path = store.save_trained(tmp_path / "model.eqx", models[0], label=LABEL, camera="Canon EOS 5D Mark II")
+    loaded = store.load_model(path)
     assert type(loaded) is type(models[0])
     for a, b in zip(
         jax.tree_util.tree_leaves(eqx.filter(loaded, eqx.is_array)),
@@ -122,7 +122,7 @@ def test_cross_validation_never_trains_on_the_scored_fold(start, examples, tmp_p
     (tmp_path / "other.json").write_text('{"format": -1}')
     (tmp_path / "other.eqx").write_bytes(b"")
     with pytest.raises(ValueError, match="format"):
-        training.load_model(tmp_path / "other.eqx")
+        store.load_model(tmp_path / "other.eqx")
 
 
 def test_schedule_checks():
@@ -161,7 +161,7 @@ def test_train_command(image_set, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "pooled" in text and "held-out median angular error" in text
     assert out.exists() and out.with_suffix(".json").exists()
-    assert isinstance(training.load_model(out), type(store.fit(LABEL, __import__("ccjax").world.World.default())))
+    assert isinstance(store.load_model(out), type(store.fit(LABEL, __import__("ccjax").world.World.default())))
 
 
 def test_estimate_with_a_model_file(start, examples, image_set, tmp_path, capsys):
@@ -177,7 +177,7 @@ def test_estimate_with_a_model_file(start, examples, image_set, tmp_path, capsys
     model, _ = training.fit_to_examples(start, examples, schedule, validation=examples, progress=False)
     assert isinstance(model, ColourByCorrelation)
     model = eqx.tree_at(lambda m: m.log_probability, model, model.log_probability * 1.5)  # surely not the start
-    path = training.save_trained(tmp_path / "cbc.eqx", model, label=LABEL, camera="Canon EOS 5D Mark II")
+    path = store.save_trained(tmp_path / "cbc.eqx", model, label=LABEL, camera="Canon EOS 5D Mark II")
     assert isinstance(ccjax.load_model(path), type(start))
     image = folder / examples.names[0]
     assert cli.main(["estimate", str(image), "--model", str(path), "--json", "--no-progress"]) == 0

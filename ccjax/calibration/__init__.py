@@ -12,6 +12,8 @@
   (Fig. 3.6) and the plots behind ``ccjax calibrate``.
 """
 
+from ccjax.calibration._kernel import second_difference
+from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
 from ccjax.calibration.batch import (
     BatchFit,
     CrossValidation,
@@ -21,6 +23,7 @@ from ccjax.calibration.batch import (
     fit_subsets,
     random_subsets,
 )
+from ccjax.calibration.errors import FitErrors, curve_error, fit_errors, support_of
 from ccjax.calibration.files import (
     CalibrationData,
     CalibrationFileError,
@@ -28,21 +31,8 @@ from ccjax.calibration.files import (
     write_calibration_csv,
     write_sensors_csv,
 )
-from ccjax.calibration.fitting import (
-    DEFAULT_SMOOTHNESS,
-    FitErrors,
-    FitStatus,
-    Linearisation,
-    SensorFit,
-    apply_linearisation,
-    curve_error,
-    fit_errors,
-    fit_sensors,
-    invert_linearisation,
-    pseudo_inverse,
-    second_difference,
-    support_of,
-)
+from ccjax.calibration.fitting import FitStatus, SensorFit, fit_sensors, pseudo_inverse
+from ccjax.calibration.linearisation import Linearisation, apply_linearisation, invert_linearisation
 from ccjax.calibration.noise import NoiseModel, fit_noise_model, synthetic_repeats
 from ccjax.calibration.synthetic import SyntheticCalibration, synthetic_calibration
 

@@ -2,8 +2,7 @@
 known camera behind ``ccjax calibrate --synthetic``.
 
 Table 3.1 and the held-out check live in :mod:`~ccjax.calibration.table`, the robustness experiment
-in :mod:`~ccjax.calibration.robustness`, the plots in :mod:`~ccjax.calibration.plots`; they are
-re-exported here, where they used to be.
+in :mod:`~ccjax.calibration.robustness`, the plots in :mod:`~ccjax.calibration.plots`.
 """
 
 from __future__ import annotations
@@ -12,32 +11,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
 from ccjax.calibration.batch import CrossValidation
-from ccjax.calibration.fitting import DEFAULT_SMOOTHNESS as DEFAULT_SMOOTHNESS
-from ccjax.calibration.plots import plot_robustness as plot_robustness
-from ccjax.calibration.plots import plot_sensors as plot_sensors
-from ccjax.calibration.robustness import ROBUSTNESS_SIZES as ROBUSTNESS_SIZES
-from ccjax.calibration.robustness import Robustness as Robustness
-from ccjax.calibration.robustness import robustness as robustness
 from ccjax.calibration.synthetic import LightChoice, SyntheticCalibration
-from ccjax.calibration.table import BLACK_SUBTRACTED as BLACK_SUBTRACTED
-from ccjax.calibration.table import EXTRA_ROWS as EXTRA_ROWS
-from ccjax.calibration.table import IGNORE_F as IGNORE_F
-from ccjax.calibration.table import JOINT as JOINT
-from ccjax.calibration.table import JOINT_RANGE as JOINT_RANGE
-from ccjax.calibration.table import LINEARISED as LINEARISED
-from ccjax.calibration.table import LINEARISED_RANGE as LINEARISED_RANGE
-from ccjax.calibration.table import NO_POSITIVITY as NO_POSITIVITY
-from ccjax.calibration.table import OFFSET as OFFSET
-from ccjax.calibration.table import PSEUDO_INVERSE as PSEUDO_INVERSE
-from ccjax.calibration.table import PSEUDO_INVERSE_POSITIVE as PSEUDO_INVERSE_POSITIVE
-from ccjax.calibration.table import THESIS_ROWS as THESIS_ROWS
-from ccjax.calibration.table import THESIS_TABLE_3_1 as THESIS_TABLE_3_1
-from ccjax.calibration.table import CalibrationTable as CalibrationTable
-from ccjax.calibration.table import HeldOut as HeldOut
-from ccjax.calibration.table import Row as Row
-from ccjax.calibration.table import calibration_table as calibration_table
-from ccjax.calibration.table import held_out as held_out
+from ccjax.calibration.table import (
+    BLACK_SUBTRACTED,
+    IGNORE_F,
+    JOINT,
+    PSEUDO_INVERSE,
+    PSEUDO_INVERSE_POSITIVE,
+    CalibrationTable,
+    HeldOut,
+    calibration_table,
+    held_out,
+)
 
 
 @dataclass

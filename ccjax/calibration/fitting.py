@@ -18,7 +18,7 @@ The relative joint fit (eq. 3.16 with the weights of 3.12) weights rows by the l
 response, first estimated as ``r - b`` and then, in a second pass, as F(r) from the first pass.
 Channels are independent (``vmap`` over channels). The kernel is in ``_kernel``, the option checks
 in ``_plan``, F in :mod:`~ccjax.calibration.linearisation`, the error measures in
-:mod:`~ccjax.calibration.errors` (all re-exported here).
+:mod:`~ccjax.calibration.errors` (the public names of all four: :mod:`ccjax.calibration`).
 """
 
 from __future__ import annotations
@@ -28,20 +28,18 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from ccjax.calibration._kernel import SEARCH_POINTS as SEARCH_POINTS
-from ccjax.calibration._kernel import SEARCH_RANGE as SEARCH_RANGE
 from ccjax.calibration._kernel import ChannelFit, fit_data_set
-from ccjax.calibration._kernel import second_difference as second_difference
-from ccjax.calibration._plan import DEFAULT_FLOOR_FRACTION as DEFAULT_FLOOR_FRACTION
-from ccjax.calibration._plan import DEFAULT_SMOOTHNESS as DEFAULT_SMOOTHNESS
-from ccjax.calibration._plan import ErrorKind, FitPlan, LinearisationKind, check_data, data_arrays, plan_fit
-from ccjax.calibration.errors import FitErrors as FitErrors
-from ccjax.calibration.errors import curve_error as curve_error
-from ccjax.calibration.errors import fit_errors as fit_errors
-from ccjax.calibration.errors import support_of as support_of
-from ccjax.calibration.linearisation import Linearisation as Linearisation
-from ccjax.calibration.linearisation import apply_linearisation as apply_linearisation
-from ccjax.calibration.linearisation import invert_linearisation as invert_linearisation
+from ccjax.calibration._plan import (
+    DEFAULT_SMOOTHNESS,
+    ErrorKind,
+    FitPlan,
+    LinearisationKind,
+    check_data,
+    data_arrays,
+    plan_fit,
+)
+from ccjax.calibration.errors import FitErrors, fit_errors
+from ccjax.calibration.linearisation import Linearisation
 from ccjax.camera import Camera
 
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from ccjax.calibration.robustness import Robustness
 from ccjax.calibration.table import JOINT, JOINT_RANGE, PSEUDO_INVERSE, PSEUDO_INVERSE_POSITIVE, CalibrationTable
-from ccjax.io.writing import write_figure
+from ccjax.io.files import write_figure
 from ccjax.spectra import WAVELENGTHS
 
 
@@ -17,7 +17,7 @@ def plot_sensors(table: CalibrationTable, path, *, truth: np.ndarray | None = No
 
     Arguments:
         table: the fits of Table 3.1.
-        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
         truth: ``(101, 3)`` true sensors, drawn dashed when known.
         title: the figure title.
 
@@ -60,7 +60,7 @@ def plot_robustness(result: Robustness, path, *, title: str = "") -> None:
 
     Arguments:
         result: the robustness experiment.
-        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
         title: the figure title.
 
     Returns:

@@ -94,7 +94,11 @@ SFU_OTHER_LIGHTS: tuple[str, ...] = (
 
 @functools.cache
 def colorchecker() -> tuple[tuple[str, ...], np.ndarray]:
-    """The 24 ColorChecker reflectances ``(24, 101)`` and their names (colour-science)."""
+    """The 24 ColorChecker reflectances and their names (colour-science).
+
+    Returns:
+        ``(names, reflectances (24, 101))``.
+    """
     import colour
 
     sds = colour.SDS_COLOURCHECKERS[COLORCHECKER]
@@ -289,7 +293,14 @@ def synthetic_calibration(
 
 
 def has_external_lights(data_dir=None) -> bool:
-    """True when the SFU illuminants are available (the thesis' light set)."""
+    """Whether the SFU illuminants are available (the thesis' light set).
+
+    Arguments:
+        data_dir: the external data directory (see :func:`ccjax.data.find_data_file`).
+
+    Returns:
+        True when the illuminant file is found.
+    """
     try:
         data.find_data_file("sfu_barnard/sfu_illuminants_380-780-4nm.csv", data_dir)
     except data.DataNotFoundError:

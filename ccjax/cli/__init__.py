@@ -27,8 +27,6 @@ if TYPE_CHECKING:
 
     GROUPS: tuple[ModuleType, ...]
     COMMANDS: list[Callable[..., None]]
-    DEFAULT_COMPARE_METHODS: list[str]
-    DEFAULT_INDEXING_METHODS: list[str]
 
 
 def groups() -> tuple[ModuleType, ...]:
@@ -45,20 +43,11 @@ def groups() -> tuple[ModuleType, ...]:
 
 
 def __getattr__(name: str) -> object:
-    """``GROUPS``, ``COMMANDS`` (every group's ``add_`` functions) and, kept for one release from the
-    single-module CLI, ``DEFAULT_COMPARE_METHODS`` / ``DEFAULT_INDEXING_METHODS``."""
+    """``GROUPS`` and ``COMMANDS`` (every group's ``add_`` functions)."""
     if name == "GROUPS":
         return groups()
     if name == "COMMANDS":
         return [add for group in groups() for add in group.COMMANDS]
-    if name == "DEFAULT_COMPARE_METHODS":
-        from ccjax.cli.synthetic import DEFAULT_COMPARE_METHODS
-
-        return DEFAULT_COMPARE_METHODS
-    if name == "DEFAULT_INDEXING_METHODS":
-        from ccjax.cli.indexing import DEFAULT_INDEXING_METHODS
-
-        return DEFAULT_INDEXING_METHODS
     if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
         return importlib.import_module(f"{__name__}.{name}")  # ``ccjax.cli.photos`` and the other groups
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -255,8 +244,6 @@ def main(argv: list[str] | None = None) -> int:
 
 __all__ = [
     "COMMANDS",
-    "DEFAULT_COMPARE_METHODS",
-    "DEFAULT_INDEXING_METHODS",
     "GROUPS",
     "build_parser",
     "groups",

@@ -102,9 +102,9 @@ def add_calibrate(sub) -> None:
 
 def joint_exp_rate(table):
     """The per-channel C of F fitted by the joint (proposed) method of Table 3.1."""
-    from ccjax.calibration import experiment
+    from ccjax.calibration.table import JOINT
 
-    linearisation = table.row(experiment.JOINT).fit.linearisation
+    linearisation = table.row(JOINT).fit.linearisation
     if linearisation is None:  # the joint method always fits F; a table without it is a bug
         raise ValueError("calibration: the joint fit has no linearisation")
     return linearisation.exp_rate
@@ -118,7 +118,8 @@ def robustness_numbers(path: str) -> str:
 
 
 def check_outputs(args) -> None:
-    """Refuse unwritable or clashing output files before any work (:mod:`ccjax.io.outputs`)."""
+    """Refuse unwritable or clashing output files before any work (a bad path found after minutes of
+    fitting would lose the run)."""
     outputs = [("--plot", args.plot), ("--save", args.save), ("--robustness", args.robustness)]
     if args.robustness:
         outputs.append(("--robustness", robustness_numbers(args.robustness)))
@@ -130,7 +131,8 @@ def check_outputs(args) -> None:
 def run_calibrate(args) -> int:
     import numpy as np
 
-    from ccjax.calibration import experiment, files, synthetic
+    from ccjax.calibration import DEFAULT_SMOOTHNESS, experiment, files, plots, robustness, synthetic
+    from ccjax.calibration import table as table_3_1
 
     start = time.perf_counter()
     if args.synthetic == (args.file is not None):
@@ -184,12 +186,12 @@ def run_calibrate(args) -> int:
             smoothness = cross_validation.best
             if not args.json:
                 print(cross_validation.table())
-        table = experiment.calibration_table(
+        table = table_3_1.calibration_table(
             spectra,
             raw,
             black=black,
             exp_rate=args.exp_rate,
-            smoothness=experiment.DEFAULT_SMOOTHNESS if smoothness is None else smoothness,
+            smoothness=DEFAULT_SMOOTHNESS if smoothness is None else smoothness,
         )
         truth = None
         if args.json:
@@ -200,7 +202,7 @@ def run_calibrate(args) -> int:
             rates = joint_exp_rate(table)
             print()
             print(
-                experiment.held_out(
+                table_3_1.held_out(
                     spectra,
                     raw,
                     black=black,
@@ -214,11 +216,11 @@ def run_calibrate(args) -> int:
     if args.plot:
         write_plot(
             args.plot,
-            lambda file: experiment.plot_sensors(table, file, truth=truth, title=title),
+            lambda file: plots.plot_sensors(table, file, truth=truth, title=title),
             overwrite=args.overwrite,
         )
     if args.save:
-        fit = table.row(experiment.JOINT).fit
+        fit = table.row(table_3_1.JOINT).fit
         files.write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation, overwrite=args.overwrite)
         print(f"wrote {args.save}", file=sys.stderr)
     if args.robustness:
@@ -226,7 +228,7 @@ def run_calibrate(args) -> int:
         if not sizes:
             raise ValueError(f"--sizes: every size is >= the {len(spectra)} measurements")
         rates = joint_exp_rate(table)
-        result = experiment.robustness(
+        result = robustness.robustness(
             spectra,
             raw,
             black=black,
@@ -246,7 +248,7 @@ def run_calibrate(args) -> int:
         title = f"robustness: {args.subsets} random subsets per size"
         write_plot(
             args.robustness,
-            lambda file: experiment.plot_robustness(result, file, title=title),
+            lambda file: plots.plot_robustness(result, file, title=title),
             overwrite=args.overwrite,
         )
         write(robustness_numbers(args.robustness), result.to_json(), overwrite=args.overwrite)

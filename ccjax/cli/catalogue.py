@@ -105,14 +105,10 @@ def run_cameras(args) -> int:
 
 
 def registered_families() -> list:
-    """The registry entries, one per family (``registry.available()`` gives entries, or, in
-    releases before the entries carried their grammar, ``(example, description)`` pairs)."""
+    """The registry entries, one per family (:func:`ccjax.estimators.registry.available`)."""
     from ccjax.estimators import registry
 
-    entries = []
-    for item in registry.available():
-        entries.append(registry.lookup(item[0])[0] if isinstance(item, tuple) else item)
-    return entries
+    return registry.available()
 
 
 def method_catalogue():

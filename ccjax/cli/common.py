@@ -135,7 +135,7 @@ def write(path: str, text: str, *, overwrite: bool) -> None:
     Returns:
         None.
     """
-    from ccjax.io.writing import write_file
+    from ccjax.io.files import write_file
 
     if path == "-":
         sys.stdout.write(text + ("\n" if not text.endswith("\n") else ""))
@@ -167,7 +167,7 @@ def check_plot(path: str | os.PathLike | None, option: str = "--plot") -> None:
 
 def write_plot(path: str | os.PathLike, draw, *, overwrite: bool) -> None:
     """Write a plot atomically: ``draw(buffer)`` renders the PNG into memory (matplotlib's
-    ``savefig`` takes a file object), then :func:`ccjax.io.writing.write_file` puts it in place
+    ``savefig`` takes a file object), then :func:`ccjax.io.files.write_file` puts it in place
     through a temporary file, so an interrupted run never leaves a partial plot.
 
     Arguments:
@@ -180,7 +180,7 @@ def write_plot(path: str | os.PathLike, draw, *, overwrite: bool) -> None:
     """
     import io
 
-    from ccjax.io.writing import write_file
+    from ccjax.io.files import write_file
 
     buffer = io.BytesIO()
     draw(buffer)

@@ -24,7 +24,7 @@ def add_estimate(sub) -> None:
     p.add_argument(
         "--model",
         default=None,
-        help="a trained model file (`ccjax train --out`, ccjax.training.save_trained) instead of --method: the "
+        help="a trained model file (`ccjax train --out`, ccjax.runs.store.save_trained) instead of --method: the "
         "method and camera it was trained for come from its record",
     )
     world_arguments(p)
@@ -53,7 +53,7 @@ def estimate_model(args):
         return args.method, None
     from pathlib import Path
 
-    from ccjax.training import load_model
+    from ccjax.runs.store import load_model
 
     if not Path(args.model).is_file():
         raise ValueError(f"--model: no such model file: {args.model}")

@@ -93,7 +93,8 @@ def run_indexing(args) -> int:
     from ccjax.experiments import indexing
     from ccjax.preprocessing import as_preprocessing
 
-    # Everything the run needs is checked before the world is built (issue 17 item 7).
+    # Everything the run needs is checked before the world is built: a bad option found after the
+    # slow build would lose it.
     check_outputs([], [("--json", args.json)], overwrite=args.overwrite)
     check_labels([label for label in args.methods or [] if label != "ACTUAL"])
     as_preprocessing(args.preprocessing)

@@ -17,8 +17,6 @@ import numpy as np
 from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
-TINY = 1e-12
-
 KINDS = ("surfaces", "image")
 """The input kinds of estimators (``AbstractEstimator.input_kind``)."""
 
@@ -240,10 +238,6 @@ class AbstractImageEstimator(AbstractEstimator):
         Returns:
             The :class:`Estimate`.
         """
-
-
-Estimator = AbstractEstimator
-"""Deprecated alias of :class:`AbstractEstimator` (kept for one release)."""
 
 
 def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Bool[Array, "B ..."]) -> Estimate:

@@ -56,11 +56,6 @@ class Entry:
     differentiable: bool = False
     stored: bool = True
 
-    def __iter__(self) -> Iterator[str]:
-        """Deprecated (one release): unpack as the ``(example, description)`` pair that
-        :func:`available` used to return."""
-        return iter((self.example, self.description))
-
 
 _ENTRIES: list[Entry] = []
 
@@ -72,6 +67,7 @@ FAMILIES = (
     "ccjax.estimators.correlation",
     "ccjax.estimators.neural",
     "ccjax.estimators.spatial",
+    "ccjax.estimators.ffcc",
 )
 _loaded = False
 

@@ -15,8 +15,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
+from ccjax._colour import TINY
 from ccjax.estimators.base import (
-    TINY,
     AbstractStatisticsSurfaceEstimator,
     AbstractSurfaceEstimator,
     AbstractUnblockedEstimator,

@@ -18,31 +18,19 @@ from ccjax.experiments.cameras import STUDY_METHODS, SharpeningStudy, camera_lis
 from ccjax.experiments.plots import plot, plot_world
 from ccjax.experiments.protocols import BASIC_COLUMNS, PROTOCOLS, Condition, Reproduction, reproduce
 from ccjax.experiments.reports import Column, Report
+from ccjax.experiments.results import SweepResult
 from ccjax.experiments.sweeps import (
-    BRIGHTNESS_STATISTICS,
-    RGB_VALUED,
-    STATISTICS,
-    SweepResult,
     is_registered,
     require_surface_estimator,
     resolve_methods,
     runnable_methods,
-    scene_errors,
     sweep,
     weights_ready,
 )
 
-# Deprecated private aliases (one release): ccjax.sharpening imports ``_is_registered``.
-_is_registered = is_registered
-_resolve_methods = resolve_methods
-_BASIC_COLUMNS = BASIC_COLUMNS
-
 __all__ = [
     "BASIC_COLUMNS",
-    "BRIGHTNESS_STATISTICS",
     "PROTOCOLS",
-    "RGB_VALUED",
-    "STATISTICS",
     "STUDY_METHODS",
     "Column",
     "Condition",
@@ -58,7 +46,6 @@ __all__ = [
     "require_surface_estimator",
     "resolve_methods",
     "runnable_methods",
-    "scene_errors",
     "sfu321_check",
     "sharpening_study",
     "sweep",

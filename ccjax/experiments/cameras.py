@@ -122,7 +122,7 @@ def curve_check(truth, world: World, *, threshold: float = CURVE_THRESHOLD) -> C
     Raises:
         ValueError: ``truth`` is not ``(N, 3)`` with a positive sum in every row, or is empty.
     """
-    from ccjax.spectra import chromaticity
+    from ccjax._colour import rg_numpy
 
     truth = np.asarray(truth, np.float64)
     if truth.ndim != 2 or truth.shape[1] != 3 or len(truth) == 0:
@@ -131,8 +131,8 @@ def curve_check(truth, world: World, *, threshold: float = CURVE_THRESHOLD) -> C
         raise ValueError("truth: every row must be finite with a positive sum")
     if not threshold > 0:
         raise ValueError(f"threshold: expected a positive distance, got {threshold!r}")
-    whites = chromaticity(_world_whites(world))
-    points = chromaticity(truth)
+    whites = rg_numpy(np.asarray(_world_whites(world), np.float64))
+    points = rg_numpy(np.asarray(truth, np.float64))
     # (N, I) distances: N images by a few hundred whites at most.
     distances = np.sqrt(((points[:, None, :] - whites[None, :, :]) ** 2).sum(axis=-1)).min(axis=1)
     return CurveCheck(world.camera.name, float(np.median(distances)), float(threshold), distances)
@@ -155,11 +155,11 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ccjax.io.writing import write_figure
-    from ccjax.spectra import chromaticity
+    from ccjax._colour import rg_numpy
+    from ccjax.io.files import write_figure
 
-    whites = chromaticity(_world_whites(world))
-    points = chromaticity(np.asarray(truth, np.float64))
+    whites = rg_numpy(np.asarray(_world_whites(world), np.float64))
+    points = rg_numpy(np.asarray(truth, np.float64))
     fig, ax = plt.subplots(figsize=(6, 5))
     ax.scatter(whites[:, 0], whites[:, 1], s=14, marker="s", label=f"{check.camera}: whites of the world's lights")
     ax.scatter(points[:, 0], points[:, 1], s=6, alpha=0.6, c="red", label="ground truth")

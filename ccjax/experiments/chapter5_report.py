@@ -15,7 +15,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ccjax.experiments.chapter5 import COMPARISONS, SHARPENINGS, chapter5_errors
-from ccjax.experiments.sweeps import is_registered, sampling_error
+from ccjax.experiments.results import sampling_error
+from ccjax.experiments.sweeps import is_registered
 from ccjax.sharpening import (
     THESIS_SCALE,
     actual_error,
@@ -230,7 +231,7 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ccjax.io.writing import write_figure
+    from ccjax.io.files import write_figure
     from ccjax.spectra import WAVELENGTHS
 
     original = np.asarray(world.camera.sensors, dtype=np.float64)

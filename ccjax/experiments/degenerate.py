@@ -1,4 +1,4 @@
-"""The degenerate-input sweep (issue 17): every buildable label on scenes that carry no or odd data.
+"""The degenerate-input sweep: every buildable label on scenes that carry no or odd data.
 
 Each label is fitted on a world and run on one ordinary synthetic scene turned degenerate in seven
 ways (:data:`CASES`): all zero, all masked, one valid surface, identical surfaces, scaled by 1e6
@@ -30,7 +30,9 @@ NO_DATA_CASES = ("zeros", "all masked")
 """Cases without usable data: every label must answer ``ok=False`` on them."""
 
 EXTRA_LABELS = ("shades-of-grey-p1000", "soft-RETINEX-t0.01", "CRULE-MV")
-"""Labels swept besides each family's registry example (the ones issue 17 names)."""
+"""Labels swept besides each family's registry example: the extreme shades-of-grey power, the
+sharpest soft-RETINEX and the plain gamut rule, whose degenerate cases differ from their family's
+example."""
 
 
 @dataclass(frozen=True)

@@ -152,7 +152,7 @@ class ImageResults:
 
     def records(self) -> list[dict]:
         """One record per image and method (path, method, illuminant, rg, ok, status, angular error)."""
-        from ccjax.spectra import chromaticity
+        from ccjax._colour import rg_numpy
 
         rows = []
         for method, estimates in self.estimates.items():
@@ -165,7 +165,7 @@ class ImageResults:
                         "path": path,
                         "method": method,
                         "illuminant": [float(v) for v in rgb],
-                        "rg": [float(v) for v in chromaticity(np.asarray(rgb, np.float64))],
+                        "rg": [float(v) for v in rg_numpy(np.asarray(rgb, np.float64))],
                         "ok": bool(ok),
                         **({} if status is None else {"status": status}),
                         **({} if error is None else {"angular": float(error)}),
@@ -245,14 +245,14 @@ def fold_worlds(
     Returns:
         ``(fold of each image (N,), [world_0, ..., world_{K-1}])``.
     """
-    from ccjax.spectra import chromaticity
+    from ccjax._colour import rg_numpy
 
     truth = np.asarray(truth, np.float64)
     if not isinstance(folds, int) or not 2 <= folds <= len(truth):
         raise ValueError(f"folds: expected an integer in [2, {len(truth)}] (number of images), got {folds!r}")
     pool = np.concatenate([np.asarray(world.train_illuminants), np.asarray(world.test_illuminants)])
-    pool_rg = chromaticity(pool @ np.asarray(world.camera.sensors, np.float64))
-    nearest = np.argmin(((chromaticity(truth)[:, None, :] - pool_rg[None]) ** 2).sum(-1), axis=1)
+    pool_rg = rg_numpy(pool @ np.asarray(world.camera.sensors, np.float64))
+    nearest = np.argmin(((rg_numpy(np.asarray(truth, np.float64))[:, None, :] - pool_rg[None]) ** 2).sum(-1), axis=1)
     if fold_of is None:
         fold_of = np.arange(len(truth)) % folds
     else:

@@ -51,6 +51,7 @@ class FolderEvaluation:
         trained: the labels trained within the folds.
         fold_of: ``(N,)`` the fold of each of ``results.paths`` (None without folds).
         validations: ``{label: CrossValidation}`` of each trained label.
+        trained_models: ``{"<label> trained": [the model of fold 0, ...]}`` (to save them).
         check: the ground truth against the world's camera (:func:`ccjax.experiments.cameras.curve_check`),
             when it was asked for or a method is world-based.
         failures: one failure record per image that could not be used, in path order.
@@ -64,6 +65,7 @@ class FolderEvaluation:
     trained: list[str] = field(default_factory=list)
     fold_of: np.ndarray | None = None
     validations: dict = field(default_factory=dict)
+    trained_models: dict = field(default_factory=dict)
     check: CurveCheck | None = None
     failures: list[str] = field(default_factory=list)
     total: int = 0
@@ -440,6 +442,7 @@ def evaluate_folder(
     if folds is not None and len(keep) < folds:
         raise ValueError(f"folds: {folds} folds need at least {folds} usable images, got {len(keep)}")
     validations: dict = {}
+    trained: dict = {}
     if starts:
         assert fold_of is not None and folds is not None
         schedule = training.Schedule(seed=seed)
@@ -475,6 +478,7 @@ def evaluate_folder(
         trained=train,
         fold_of=scored,
         validations=validations,
+        trained_models=trained,
         check=check,
         failures=failures,
         total=len(paths),

@@ -229,7 +229,7 @@ def run_indexing(
         methods: estimator labels; ``"ACTUAL"`` is the true light.
         key: ``jax.random`` key of objects, lights, poses, shading and noise.
         n_objects, n_surfaces, n_lights, size: the experiment's dimensions (thesis: 20 objects,
-            11 lights; the issue's synthetic version: 50 objects of 8 reflectances, 20 lights).
+            11 lights; the defaults: a synthetic version with 50 objects of 8 reflectances, 20 lights).
         noise: image noise (variance ``a * rho + b``), or None.
         preprocessing, dark: the image pipeline's settings for surface-list methods.
         fit: ``fit(label, world) -> estimator`` (default :func:`ccjax.runs.store.fit`).

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ccjax.experiments.sweeps import SweepResult
-from ccjax.io.writing import write_figure
+from ccjax.experiments.results import SweepResult
+from ccjax.io.files import write_figure
 from ccjax.world import World
 
 STATISTIC_LABELS = {
@@ -39,7 +39,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
 
     Arguments:
         result: a sweep.
-        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
         statistics: one panel per statistic.
         summary: the summary of the per-scene errors (``"rms"`` as in the thesis).
         title: the figure title (default: the scenes per point).
@@ -76,9 +76,9 @@ def plot_world(world: World, path) -> None:
 
     Arguments:
         world: the world.
-        path: the PNG to write (atomically, :func:`ccjax.io.writing.write_figure`), or a binary file.
+        path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
     """
-    from ccjax.spectra import chromaticity
+    from ccjax._colour import rg_numpy
 
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), sharex=True, sharey=True)
@@ -88,9 +88,9 @@ def plot_world(world: World, path) -> None:
         ("reflectances under the canonical light", np.asarray(world.canonical_rgb), 2),
     ]
     for ax, (title, rgb, size) in zip(axes, panels, strict=True):
-        rg = chromaticity(rgb)
+        rg = rg_numpy(np.asarray(rgb, np.float64))
         ax.scatter(rg[:, 0], rg[:, 1], s=size, alpha=0.7)
-        canon = chromaticity(np.asarray(world.canonical_white))
+        canon = rg_numpy(np.asarray(world.canonical_white, np.float64))
         ax.scatter([canon[0]], [canon[1]], marker="*", s=120, c="red", label="canonical")
         ax.set_title(f"{title} ({len(rgb)})")
         ax.set_xlabel("r")

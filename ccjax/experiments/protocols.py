@@ -14,13 +14,9 @@ import jax
 import numpy as np
 
 from ccjax.experiments.reports import Column, Report
-from ccjax.experiments.sweeps import (
-    RGB_VALUED,
-    STATISTICS,
-    SweepResult,
-    is_registered,
-    resolve_methods,
-)
+from ccjax.experiments.results import SweepResult
+from ccjax.experiments.sweeps import is_registered, resolve_methods
+from ccjax.runs.engine import RGB_VALUED, STATISTICS
 from ccjax.runs.synthetic import SyntheticSource, run_synthetic
 from ccjax.scenes import Fluorescent, Metallic, SceneOptions, Specular
 from ccjax.world import World
@@ -112,7 +108,7 @@ REPRODUCTION_COLUMNS = (
     Column("ok_fraction", "ok", spec=".0%", gap=2),
 )
 """The text view of a reproduction; ``s.e.`` is ours' standard error over scenes (delta method for
-the RMS, :func:`ccjax.experiments.sweeps.sampling_error`), in the units of ``ours``."""
+the RMS, :func:`ccjax.experiments.results.sampling_error`), in the units of ``ours``."""
 
 
 @dataclass
@@ -224,7 +220,7 @@ def run_conditions(
             reflectances, :func:`ccjax.materials.scene_metal_spectra`).
 
     Returns:
-        One :class:`~ccjax.experiments.sweeps.SweepResult` per condition (one surface count each).
+        One :class:`~ccjax.experiments.results.SweepResult` per condition (one surface count each).
     """
     sources = [
         SyntheticSource(key, (condition.n_surfaces,), n_scenes, condition.options, metals=metals)
@@ -306,7 +302,7 @@ def reproduce(
     Returns:
         A :class:`Reproduction`; ``relative_difference = ours / thesis - 1``; ``sampling_error`` is
         the standard error of ``ours`` over the scenes (delta method for the RMS, see
-        :func:`ccjax.experiments.sweeps.sampling_error`), in the units of ``ours``.
+        :func:`ccjax.experiments.results.sampling_error`), in the units of ``ours``.
     """
     from ccjax import thesis
 

@@ -13,9 +13,6 @@ from ccjax.estimators import base
 from ccjax.experiments.reports import Column, Report
 from ccjax.runs.engine import STATISTICS
 
-RGB_VALUED = ("rgb", "brightness", "map_rgb")
-"""Statistics on the RGB scale (multiplied by the thesis' white = 255 when compared with it)."""
-
 STATUS_SUMMARIES = ("relaxed", "fell_back")
 """Per-scene status shares of :meth:`SweepResult.status_fraction`: ``relaxed`` is
 :attr:`Status.RELAXED <ccjax.estimators.base.Status>` (the method's answer broke a constraint and

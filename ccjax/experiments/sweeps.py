@@ -17,17 +17,9 @@ import jax
 
 from ccjax.estimators import base, registry
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.experiments.results import RGB_VALUED as RGB_VALUED
-from ccjax.experiments.results import STATUS_SUMMARIES as STATUS_SUMMARIES
-from ccjax.experiments.results import SweepResult as SweepResult
-from ccjax.experiments.results import sampling_error as sampling_error
+from ccjax.experiments.results import SweepResult
 from ccjax.runs import store
-from ccjax.runs.engine import BRIGHTNESS_STATISTICS as BRIGHTNESS_STATISTICS
-from ccjax.runs.engine import STATISTICS as STATISTICS
-from ccjax.runs.engine import scene_errors as scene_errors
-from ccjax.runs.synthetic import MAX_PADDING as MAX_PADDING
 from ccjax.runs.synthetic import SyntheticSource, run_synthetic
-from ccjax.runs.synthetic import padded_sizes as padded_sizes
 from ccjax.scenes import Fluorescent, Metallic, RadianceModel, SceneOptions, ShotNoise, Specular
 from ccjax.world import World
 

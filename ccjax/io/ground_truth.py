@@ -22,7 +22,7 @@ from pathlib import Path, PurePath
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ccjax._cache import atomic_write
+from ccjax.io.files import write_file
 from ccjax.io.reading import list_images
 
 
@@ -157,7 +157,7 @@ def write_ground_truth(path: str | os.PathLike, names: Iterable[str], illuminant
     writer.writerow(["image", "r", "g", "b"])
     for name, rgb in zip(names, np.asarray(illuminants, np.float64)):
         writer.writerow([name, *(f"{v:.9g}" for v in rgb)])
-    atomic_write(Path(path), text.getvalue().encode("utf-8"))
+    write_file(path, text.getvalue())
 
 
 def match_ground_truth(truth: dict[str, np.ndarray], directory: str | os.PathLike) -> list[tuple[Path, np.ndarray]]:

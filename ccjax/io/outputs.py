@@ -15,10 +15,11 @@
 
 from __future__ import annotations
 
-import errno
 import os
 from collections.abc import Iterable
 from pathlib import Path
+
+from ccjax._cache import put_in_place
 
 __all__ = [
     "STANDARD_OUTPUT",
@@ -28,9 +29,6 @@ __all__ = [
     "path_key",
     "put_in_place",
 ]
-
-_NO_HARD_LINKS = (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK)
-"""``os.link`` errors of file systems without hard links (FAT, some network mounts)."""
 
 STANDARD_OUTPUT = "-"
 """The path that names standard output (always accepted, never a file)."""
@@ -135,43 +133,3 @@ def check_outputs(
         written[key] = (option, Path(path))
     for option, path in files:
         check_output_file(path, option, overwrite=overwrite)
-
-
-def put_in_place(temporary: str | os.PathLike, path: str | os.PathLike, *, overwrite: bool) -> None:
-    """Move a finished temporary file (in ``path``'s folder) to ``path``.
-
-    With ``overwrite`` it replaces whatever is at ``path`` (``os.replace``: a symbolic link there
-    is replaced, never followed). Without, a hard link makes the new name, which fails rather
-    than replace a file that appeared since the command's check; where the file system has no
-    hard links, ``path`` is checked again just before the rename.
-
-    Arguments:
-        temporary: the complete file (removed in every case).
-        path: its final name.
-        overwrite: whether a file at ``path`` may be replaced.
-
-    Returns:
-        None.
-
-    Raises:
-        FileExistsError: without ``overwrite``, ``path`` exists (the message names it).
-    """
-    appeared = FileExistsError(
-        errno.EEXIST, "appeared while ccjax was working and is kept (use --overwrite to replace it)", str(path)
-    )
-    try:
-        if overwrite:
-            os.replace(temporary, path)
-            return
-        try:
-            os.link(temporary, path)
-        except FileExistsError:
-            raise appeared from None
-        except OSError as error:
-            if error.errno not in _NO_HARD_LINKS:
-                raise
-            if os.path.lexists(path):
-                raise appeared from None
-            os.replace(temporary, path)
-    finally:
-        Path(temporary).unlink(missing_ok=True)

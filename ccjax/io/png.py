@@ -16,6 +16,8 @@ from pathlib import Path
 import imagecodecs
 import numpy as np
 
+from ccjax.io.files import write_file
+
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 COMPRESSION_LEVEL = 6
 """zlib level of written files (libpng's default trade-off between size and speed)."""
@@ -166,7 +168,7 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
 
 def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = True) -> None:
     """Write ``uint16`` or ``uint8`` ``(H, W, 3)`` as an RGB PNG, atomically
-    (:func:`ccjax.io.writing.write_file`: readers never see a partial file).
+    (:func:`ccjax.io.files.write_file`: readers never see a partial file).
 
     Arguments:
         path: the file (missing folders are created).
@@ -182,7 +184,5 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = 
         raise ValueError(f"pixels: expected uint8/uint16 (H, W, 3), got {pixels.dtype} {pixels.shape}")
     if pixels.size == 0:
         raise ValueError(f"pixels: a PNG needs at least one pixel, got shape {pixels.shape}")
-    from ccjax.io.writing import write_file  # (writing imports this module)
-
     blob = bytes(imagecodecs.png_encode(np.ascontiguousarray(pixels), level=COMPRESSION_LEVEL))
     write_file(path, blob, overwrite=overwrite)

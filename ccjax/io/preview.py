@@ -58,7 +58,14 @@ def preview_matrix(world) -> np.ndarray:
 
 
 def preview_matrix_cached(world) -> np.ndarray:
-    """:func:`preview_matrix`, cached on disk by the world's content (importing colour-science is slow)."""
+    """:func:`preview_matrix`, cached on disk by the world's content (importing colour-science is slow).
+
+    Arguments:
+        world: the world whose camera the matrix is for.
+
+    Returns:
+        The ``(3, 3)`` camera-to-linear-sRGB matrix of :func:`preview_matrix`.
+    """
     key = content_key("preview", PREVIEW_METHOD, world)
     return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, {"world": world.name})["matrix"]
 

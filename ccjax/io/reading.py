@@ -79,14 +79,18 @@ class LinearImage:
         return self.rgb.shape[:2]
 
 
-def _read_raw(path: Path) -> np.ndarray:
-    """Camera-native linear RGB of a raw file, on LibRaw's scale (black 0, white 65535)."""
+def _rawpy(path: Path):
+    """The rawpy module (the optional raw extra), or a ValueError naming ``path`` and the extra."""
     try:
         import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
     except ImportError:
-        raise ValueError(
-            f"image: {path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')"
-        ) from None
+        raise ValueError(f"{path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')") from None
+    return rawpy
+
+
+def _read_raw(path: Path) -> np.ndarray:
+    """Camera-native linear RGB of a raw file, on LibRaw's scale (black 0, white 65535)."""
+    rawpy = _rawpy(path)
     with rawpy.imread(str(path)) as raw:
         # Camera-native RGB, no white balance, no colour matrix, linear, one pixel per Bayer quad
         # (half_size: no demosaicing, so pixels are not interpolated across edges).
@@ -168,11 +172,7 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
         with tifffile.TiffFile(path) as tif:
             return _tiff_layout(tif)
     if suffix in RAW_SUFFIXES:
-        try:
-            import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
-        except ImportError:
-            raise ValueError(f"{path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')") from None
-        with rawpy.imread(str(path)) as raw:
+        with _rawpy(path).imread(str(path)) as raw:
             sizes = raw.sizes
             return (sizes.height // 2, sizes.width // 2, 3), np.dtype(np.uint16)
     raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")

@@ -405,7 +405,13 @@ def lab_lights(data_dir=None) -> np.ndarray:
 class FluorescentWeights:
     """Relative frequencies of FL training (A20): each ordinary reflectance counts ``reflectance``
     times, each fluorescent surface ``fluorescent`` times; ``fraction`` of all occurrences are
-    fluorescent."""
+    fluorescent.
+
+    Attributes:
+        reflectance: occurrences of each ordinary reflectance.
+        fluorescent: occurrences of each fluorescent surface.
+        fraction: share of fluorescent occurrences.
+    """
 
     reflectance: float
     fluorescent: float

@@ -153,24 +153,6 @@ def input_shapes(
     return shapes
 
 
-def model_input(
-    model: AbstractEstimator,
-    image: LinearImage,
-    preprocessing: str | Preprocessing | None = None,
-    *,
-    dark: float = DEFAULT_DARK,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`prepare` (kept for callers of the earlier name).
-
-    Arguments:
-        model, image, preprocessing, dark: as for :func:`prepare`.
-
-    Returns:
-        As :func:`prepare`.
-    """
-    return prepare(model, image, preprocessing, dark=dark)
-
-
 def _concrete(model: AbstractEstimator) -> Callable[[Array, Array], Estimate]:
     # The abstract base declares no __call__ (its surface and image subtypes do, with different
     # shapes), so the type checker is told here what every fitted model is.

@@ -32,8 +32,9 @@ STATISTICS = ("angular", "rg", "rgb", "brightness", "map_rg", "map_rgb")
 """Per-scene error measures (Barnard 1999 §4.2): angle (degrees), (r,g) distance, RGB distance,
 signed R+G+B difference, scene mapping RMS (r,g) and RGB errors; RGB-valued ones on the unit scale."""
 
-BRIGHTNESS_STATISTICS = ("rgb", "brightness", "map_rgb")
-"""Statistics that apply only to methods estimating the light's brightness (3-D methods)."""
+RGB_VALUED = ("rgb", "brightness", "map_rgb")
+"""Statistics on the RGB scale: they apply only to methods estimating the light's brightness (3-D
+methods), and are multiplied by the thesis' white = 255 when compared with its tables."""
 
 SURFACES_PER_CHUNK = 1 << 22
 """Default chunk: about this many surface slots (scenes x padded size), which keeps a chunk's
@@ -69,7 +70,7 @@ def scene_errors(model: AbstractEstimator, scenes: Scenes, canonical_white: Floa
 
 def applicable(model: AbstractEstimator, errors: dict) -> dict:
     """``errors`` without the statistics that do not apply to ``model``: the RGB-valued ones
-    (:data:`BRIGHTNESS_STATISTICS`) unless it estimates the light's brightness.
+    (:data:`RGB_VALUED`) unless it estimates the light's brightness.
 
     Arguments:
         model: the estimator the errors are of.
@@ -78,9 +79,7 @@ def applicable(model: AbstractEstimator, errors: dict) -> dict:
     Returns:
         A new dict, in the order of ``errors``.
     """
-    return {
-        name: value for name, value in errors.items() if model.estimates_brightness or name not in BRIGHTNESS_STATISTICS
-    }
+    return {name: value for name, value in errors.items() if model.estimates_brightness or name not in RGB_VALUED}
 
 
 _errors_program = eqx.filter_jit(scene_errors)

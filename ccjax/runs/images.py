@@ -63,8 +63,8 @@ class ImageRun:
         Returns:
             A list of dicts.
         """
+        from ccjax._colour import rg_numpy
         from ccjax.estimators.base import Status
-        from ccjax.spectra import chromaticity
 
         rows = []
         for label, estimates in self.estimates.items():
@@ -75,7 +75,7 @@ class ImageRun:
                         "path": self.paths[index],
                         "method": label,
                         "illuminant": [float(v) for v in rgb],
-                        "rg": [float(v) for v in chromaticity(np.asarray(rgb, np.float64))],
+                        "rg": [float(v) for v in rg_numpy(np.asarray(rgb, np.float64))],
                         "ok": bool(self.ok[label][index]),
                         "status": Status(int(self.status[label][index])).name.lower(),
                     }

@@ -12,6 +12,10 @@ schema version and a content digest; a model is rebuilt only from the classes of
 :func:`ccjax.estimators.registry.model_classes`, looked up by name. An entry that does not verify
 is fitted (or built) again and replaced, with one :class:`CacheEntryRejected` warning. Models that
 cannot be written as data (a function inside) stay in memory only.
+
+Trained-model files (:func:`save_trained`, :func:`load_model`) are the house format of
+:func:`ccjax._cache.save_model`: a model's leaves and a JSON record of the label and world its
+skeleton is fitted to.
 """
 
 from __future__ import annotations
@@ -30,7 +34,8 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from ccjax._cache import cache_directory, code_fingerprint, content_key
+from ccjax._cache import FORMAT_VERSION, cache_directory, code_fingerprint, content_key, read_model_metadata, save_model
+from ccjax._cache import load_model as load_leaves
 from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.runs import _serial
@@ -148,6 +153,67 @@ def fit(label: str, world: World, **options) -> AbstractEstimator:
         The fitted model (the same object for equal arguments within a process).
     """
     return fit_with_source(label, world, **options)[0]
+
+
+def save_trained(
+    path: str | os.PathLike,
+    model: AbstractEstimator,
+    *,
+    label: str,
+    camera: str,
+    world_seed: int = 0,
+    record: Mapping[str, Any] | None = None,
+    overwrite: bool = True,
+) -> Path:
+    """Write a trained model: its leaves and a JSON record (format version, label, the camera and
+    world seed its start was fitted to, and ``record``).
+
+    Arguments:
+        path: the model file (``.eqx``; the record goes beside it as ``.json``).
+        model: the trained estimator.
+        label: its registry label (the skeleton :func:`load_model` fits).
+        camera: camera of the default world the skeleton is fitted to.
+        world_seed: that world's seed.
+        record: more JSON fields (``ccjax.training`` records its schedule and training log).
+        overwrite: replace existing files (else ``FileExistsError``).
+
+    Returns:
+        The model file's path.
+    """
+    metadata = {
+        **(record or {}),
+        "kind": "trained-estimator",
+        "label": label,
+        "camera": camera,
+        "world_seed": int(world_seed),
+    }
+    return save_model(Path(path), model, metadata, replace=overwrite)
+
+
+def load_model(path: str | os.PathLike) -> AbstractEstimator:
+    """Read a model written by :func:`save_trained` (format :data:`ccjax._cache.FORMAT_VERSION`):
+    its skeleton is the label fitted to the recorded camera's default world, its leaves the file's.
+
+    Arguments:
+        path: the model file (as written by :func:`save_trained`, e.g. by ``ccjax train --out``).
+
+    Returns:
+        The trained estimator: the recorded method label fitted to ``World.default(camera,
+        seed=world_seed)`` from the file's record, with every array leaf replaced by the file's.
+
+    Raises:
+        ValueError: not a trained-model file, another format version, or leaves that do not fit.
+    """
+    path = Path(path)
+    metadata = read_model_metadata(path)
+    if metadata.get("kind") != "trained-estimator" or "label" not in metadata:
+        raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
+    for field_name, kind in (("label", str), ("camera", str), ("world_seed", int)):
+        value = metadata.get(field_name, 0 if field_name == "world_seed" else None)
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise ValueError(f"model: the record of {path} gives {field_name} {value!r}; expected a {kind.__name__}")
+    skeleton = fit(metadata["label"], world("default", metadata["camera"], seed=metadata.get("world_seed", 0)))
+    return load_leaves(path, skeleton)
 
 
 def clear_memory() -> None:

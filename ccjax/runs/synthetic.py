@@ -27,6 +27,7 @@ from ccjax._cache import code_fingerprint, content_key, read_arrays, write_array
 from ccjax.estimators.base import AbstractEstimator, Padding, require_kind
 from ccjax.runs.engine import Placement, Stream, chunking, run_streams
 from ccjax.scenes import SceneOptions, Scenes, SceneTables
+from ccjax.scenes.options import require_count
 from ccjax.world import World
 
 MAX_PADDING = 2
@@ -60,11 +61,11 @@ class SyntheticSource:
     fluorescent_surfaces: scenes.RadianceModel | None = None
 
     def __post_init__(self):
-        counts = tuple(scenes.require_count(n, "n_surfaces", 1) for n in self.surfaces)
+        counts = tuple(require_count(n, "n_surfaces", 1) for n in self.surfaces)
         if not counts:
             raise ValueError("n_surfaces: expected at least one surface count, got none")
         object.__setattr__(self, "surfaces", counts)
-        object.__setattr__(self, "n_scenes", scenes.require_count(self.n_scenes, "n_scenes", 1))
+        object.__setattr__(self, "n_scenes", require_count(self.n_scenes, "n_scenes", 1))
         if not isinstance(self.options, SceneOptions):
             raise ValueError(f"options: expected a SceneOptions, got {type(self.options).__name__}")
 

@@ -15,30 +15,47 @@ colours live in :class:`SceneTables` (:mod:`ccjax.scenes.tables`;
 :class:`RadianceModel` from :mod:`ccjax.materials`).
 """
 
-from ccjax.scenes.mondrian import MondrianImages as MondrianImages
-from ccjax.scenes.mondrian import mondrian_batch as mondrian_batch
-from ccjax.scenes.mondrian import mondrian_layout as mondrian_layout
-from ccjax.scenes.mondrian import render_mondrian as render_mondrian
-from ccjax.scenes.mondrian import sample_mondrians as sample_mondrians
-from ccjax.scenes.options import Fluorescent as Fluorescent
-from ccjax.scenes.options import Metallic as Metallic
-from ccjax.scenes.options import SceneOptions as SceneOptions
-from ccjax.scenes.options import ShotNoise as ShotNoise
-from ccjax.scenes.options import Specular as Specular
-from ccjax.scenes.options import require_count as require_count
-from ccjax.scenes.options import resolve_materials as resolve_materials
-from ccjax.scenes.options import resolve_options as resolve_options
-from ccjax.scenes.surfaces import SceneDraw as SceneDraw
-from ccjax.scenes.surfaces import SceneKeys as SceneKeys
-from ccjax.scenes.surfaces import Scenes as Scenes
-from ccjax.scenes.surfaces import draw_scene as draw_scene
-from ccjax.scenes.surfaces import draw_scenes as draw_scenes
-from ccjax.scenes.surfaces import draw_without_replacement as draw_without_replacement
-from ccjax.scenes.surfaces import sample as sample
-from ccjax.scenes.surfaces import sample_batch as sample_batch
-from ccjax.scenes.surfaces import sample_batch_slots as sample_batch_slots
-from ccjax.scenes.surfaces import sample_one as sample_one
-from ccjax.scenes.surfaces import scene_keys as scene_keys
-from ccjax.scenes.surfaces import sweep_keys as sweep_keys
-from ccjax.scenes.tables import RadianceModel as RadianceModel
-from ccjax.scenes.tables import SceneTables as SceneTables
+from ccjax.scenes.mondrian import MondrianImages, mondrian_batch, mondrian_layout, render_mondrian, sample_mondrians
+from ccjax.scenes.options import Fluorescent, Metallic, SceneOptions, ShotNoise, Specular
+from ccjax.scenes.surfaces import (
+    SceneDraw,
+    SceneKeys,
+    Scenes,
+    draw_scene,
+    draw_scenes,
+    draw_without_replacement,
+    sample,
+    sample_batch,
+    sample_batch_slots,
+    sample_one,
+    scene_keys,
+    sweep_keys,
+)
+from ccjax.scenes.tables import RadianceModel, SceneTables
+
+__all__ = [
+    "Fluorescent",
+    "Metallic",
+    "MondrianImages",
+    "RadianceModel",
+    "SceneDraw",
+    "SceneKeys",
+    "SceneOptions",
+    "SceneTables",
+    "Scenes",
+    "ShotNoise",
+    "Specular",
+    "draw_scene",
+    "draw_scenes",
+    "draw_without_replacement",
+    "mondrian_batch",
+    "mondrian_layout",
+    "render_mondrian",
+    "sample",
+    "sample_batch",
+    "sample_batch_slots",
+    "sample_mondrians",
+    "sample_one",
+    "scene_keys",
+    "sweep_keys",
+]

@@ -76,6 +76,11 @@ def mondrian_layout(key: PRNGKeyArray, height: int, width: int, n_patches: int) 
     """A guillotine Mondrian: ``round(sqrt(P))`` horizontal bands of random heights, each cut
     into columns of random widths, ``n_patches`` rectangles in all (every one visible).
 
+    Arguments:
+        key: PRNG key of the layout.
+        height, width: image size in pixels.
+        n_patches: number of rectangles.
+
     Returns:
         ``(H, W)`` patch index per pixel, in ``0 .. n_patches - 1``.
     """
@@ -133,6 +138,16 @@ def render_mondrian(
     ``metallic`` (and ``metal_rgb``, the metals' RGBs under the image's light), a patch gets, with
     ``metallic.probability``, a blob of the same shape of peak ``U(0, metallic.max_amount) * s_i``
     times a metal's RGB, the metal uniform over ``metal_rgb`` (§8.3).
+
+    Arguments:
+        key: PRNG key of the shading, highlights and noise.
+        labels: ``(H, W)`` patch index per pixel (:func:`mondrian_layout`).
+        patch_rgb: ``(P, 3)`` RGB of each patch under the image's light.
+        white: ``(3,)`` RGB of a perfect white under that light.
+        shading: range of the per-patch shading factor.
+        specular, noise, clip, metallic: the scene options (:mod:`ccjax.scenes.options`).
+        normalise: scale the noise-free image so its brightest channel value is 1.
+        metal_rgb: ``(M, 3)`` the metals' RGBs under the image's light (with ``metallic``).
 
     Returns:
         ``(image (H, W, 3), white (3,))``, the white on the image's scale.
@@ -203,7 +218,19 @@ def mondrian_batch(
 ) -> MondrianImages:
     """Mondrians for a batch of per-image keys ``(B,)``: a test illuminant and ``n_patches``
     reflectances (without replacement) per image, as :func:`sample_one` draws them; with
-    ``fluorescent``, each patch is one of the tables' fluorescent surfaces with its probability."""
+    ``fluorescent``, each patch is one of the tables' fluorescent surfaces with its probability.
+
+    Arguments:
+        keys: ``(B,)`` per-image keys (:func:`scene_keys`).
+        tables: the world's :class:`SceneTables`.
+        height, width: image size in pixels.
+        n_patches: patches (reflectances) per image.
+        shading, specular, noise, clip, normalise, metallic: as for :func:`render_mondrian`.
+        fluorescent: fluorescent surfaces (:class:`Fluorescent`), or ``None``.
+
+    Returns:
+        The :class:`MondrianImages` of the batch.
+    """
     require_tables(tables, metallic, fluorescent)
 
     def one(key):

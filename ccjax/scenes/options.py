@@ -62,7 +62,12 @@ class Metallic:
     tables' metals. By default the spectra are the metals' own reflectances (at most 1), so a
     highlight is at most ``max_amount`` times as bright as a perfect white in every channel: the
     thesis' "up to a factor of four times as bright as a perfect white" (see
-    :func:`ccjax.materials.scene_metal_spectra`)."""
+    :func:`ccjax.materials.scene_metal_spectra`).
+
+    Attributes:
+        probability: chance that a surface gets a highlight.
+        max_amount: largest multiple of the metal spectrum added.
+    """
 
     probability: float = METAL_PROBABILITY
     max_amount: float = METAL_MAX_AMOUNT
@@ -76,7 +81,11 @@ class Metallic:
 class Fluorescent:
     """Fluorescent surfaces (Barnard 1999 §7.3, "30 % of the randomly selected surfaces"; A21):
     each surface slot independently becomes, with ``probability``, one of the tables' fluorescent
-    surfaces chosen uniformly (a surface may then occur twice in a scene: there are only nine)."""
+    surfaces chosen uniformly (a surface may then occur twice in a scene: there are only nine).
+
+    Attributes:
+        probability: chance that a surface slot is fluorescent.
+    """
 
     probability: float = 0.3
 
@@ -95,7 +104,17 @@ def _require_real(value, name: str, expected: str, accept) -> None:
 
 def require_count(value, name: str, low: int, high: int | None = None) -> int:
     """``value`` as a Python ``int`` (any integer-like value, e.g. ``np.int64``, via
-    ``operator.index``); a ``ValueError`` naming ``name`` when it is not an integer in range."""
+    ``operator.index``); a ``ValueError`` naming ``name`` when it is not an integer in range.
+
+    Arguments:
+        value: the count to check.
+        name: the argument's name, for the error.
+        low: smallest allowed value.
+        high: largest allowed value (``None``: no bound).
+
+    Returns:
+        ``value`` as an ``int``.
+    """
     span = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
     if isinstance(value, bool):
         raise ValueError(f"{name}: expected {span}, got the boolean {value!r}")
@@ -109,7 +128,15 @@ def require_count(value, name: str, low: int, high: int | None = None) -> int:
 
 
 def resolve_materials(metallic, fluorescent) -> tuple[Metallic | None, Fluorescent | None]:
-    """Validate and normalise the material options (``True`` -> the thesis recipe)."""
+    """Validate and normalise the material options (``True`` -> the thesis recipe).
+
+    Arguments:
+        metallic: a :class:`Metallic`, ``True``, or ``None`` / ``False``.
+        fluorescent: a :class:`Fluorescent`, ``True``, or ``None`` / ``False``.
+
+    Returns:
+        ``(metallic or None, fluorescent or None)``.
+    """
     metallic = Metallic() if metallic is True else (metallic or None)
     fluorescent = Fluorescent() if fluorescent is True else (fluorescent or None)
     if metallic is not None and not isinstance(metallic, Metallic):
@@ -120,7 +147,16 @@ def resolve_materials(metallic, fluorescent) -> tuple[Metallic | None, Fluoresce
 
 
 def resolve_options(specular, noise, clip) -> tuple[Specular | None, ShotNoise | None]:
-    """Validate and normalise the scene options (``True`` -> the default recipe)."""
+    """Validate and normalise the scene options (``True`` -> the default recipe).
+
+    Arguments:
+        specular: a :class:`Specular`, ``True``, or ``None`` / ``False``.
+        noise: a :class:`ShotNoise`, ``True``, or ``None`` / ``False``.
+        clip: the clip level, or ``None``.
+
+    Returns:
+        ``(specular or None, noise or None)``.
+    """
     specular = Specular() if specular is True else (specular or None)
     noise = ShotNoise() if noise is True else (noise or None)
     if specular is not None:

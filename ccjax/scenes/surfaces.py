@@ -194,6 +194,16 @@ def sample_one(
     the same scene as without ``slots`` padded with masked-out zeros (every draw's random bits
     for a longer shape extend a shorter one's; see :func:`sample_batch_slots` for rounding),
     from one program for every count.
+
+    Arguments:
+        key: the scene's key.
+        tables: the world's :class:`SceneTables`.
+        n_surfaces: surfaces in the scene.
+        specular, noise, clip, metallic, fluorescent: the scene options (:mod:`ccjax.scenes.options`).
+        slots: surface slots (static; ``None``: ``n_surfaces``).
+
+    Returns:
+        The :class:`Scenes` of one scene (no batch axis).
     """
     require_tables(tables, metallic, fluorescent)
     n_lights, n_reflectances, _ = tables.surface_rgb.shape
@@ -251,7 +261,17 @@ def sample_batch(
     metallic: Metallic | None = None,
     fluorescent: Fluorescent | None = None,
 ) -> Scenes:
-    """Scenes for a batch of per-scene keys ``(B,)`` (the sweep engine's entry point)."""
+    """Scenes for a batch of per-scene keys ``(B,)`` (the sweep engine's entry point).
+
+    Arguments:
+        keys: ``(B,)`` per-scene keys (:func:`scene_keys`).
+        tables: the world's :class:`SceneTables`.
+        n_surfaces: surfaces per scene.
+        specular, noise, clip, metallic, fluorescent: the scene options (:mod:`ccjax.scenes.options`).
+
+    Returns:
+        The :class:`Scenes` of the batch.
+    """
     return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip, metallic, fluorescent))(keys)
 
 
@@ -273,7 +293,17 @@ def sample_batch_slots(
     at most one scene option, to float rounding with several (another program may round their
     sums otherwise); and one compiled program serves every count (a sweep's counts padded to one
     size share it). Needs JAX's partitionable threefry (``jax_threefry_partitionable``, the
-    default)."""
+    default).
+
+    Arguments:
+        keys, tables: as for :func:`sample_batch`.
+        n_surfaces: the scenes' surface count (may be traced).
+        slots: surface slots per scene (static).
+        specular, noise, clip, metallic, fluorescent: as for :func:`sample_batch`.
+
+    Returns:
+        The :class:`Scenes`, ``slots`` wide.
+    """
     n_surfaces = jnp.asarray(n_surfaces, jnp.int32)
     return jax.vmap(lambda k: sample_one(k, tables, n_surfaces, specular, noise, clip, metallic, fluorescent, slots))(
         keys
@@ -281,7 +311,16 @@ def sample_batch_slots(
 
 
 def scene_keys(key: PRNGKeyArray, start: int, count: int) -> SceneKeys:
-    """Keys of scenes ``start .. start+count-1`` of a stream: independent of how it is chunked."""
+    """Keys of scenes ``start .. start+count-1`` of a stream: independent of how it is chunked.
+
+    Arguments:
+        key: the stream's key.
+        start: index of the first scene.
+        count: number of scenes.
+
+    Returns:
+        ``(count,)`` keys.
+    """
     return jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(start, start + count, dtype=jnp.uint32))
 
 

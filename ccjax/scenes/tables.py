@@ -29,6 +29,14 @@ class SceneTables(eqx.Module):
     """Per-world response tables from which scenes are gathered (computed once per world).
 
     The metal and fluorescent tables are ``None`` unless :meth:`from_world` was asked for them.
+
+    Attributes:
+        surface_rgb: ``(J, S, 3)`` every reflectance under every test illuminant.
+        whites: ``(J, 3)`` a perfect white under every test illuminant.
+        canonical_rgb: ``(S, 3)`` every reflectance under the canonical light.
+        canonical_white: ``(3,)`` a perfect white under the canonical light.
+        metal_rgb, canonical_metal_rgb: the metal spectra likewise (or ``None``).
+        fluorescent_rgb, canonical_fluorescent_rgb: the fluorescent surfaces likewise (or ``None``).
     """
 
     surface_rgb: Float[Array, "J S 3"]  # every reflectance under every test illuminant

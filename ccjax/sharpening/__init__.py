@@ -16,65 +16,64 @@ The chapter-5 experiments (Table 5.1, the transform summaries and plots of ``ccj
 camera ranking) are in :mod:`ccjax.experiments.chapter5`.
 """
 
-import importlib
-import warnings
+from ccjax.sharpening.learned import LearnedSharpening, learned_sharpening, scene_losses
+from ccjax.sharpening.new_method import (
+    NEGATIVE_TOLERANCE,
+    POSITIVITY_OFFSET,
+    DatabaseStatistics,
+    NewSharpening,
+    ObjectiveTerms,
+    new_sharpening,
+    objective,
+    objective_terms,
+    on_sphere,
+)
+from ccjax.sharpening.transforms import (
+    THESIS_SCALE,
+    actual_error,
+    average_sharpening,
+    best_diagonal_map,
+    best_linear_error,
+    best_linear_map,
+    database_responses,
+    database_sharpening,
+    diagonal_error,
+    mapping_error,
+    normalise_transform,
+    optimal_sharpening,
+    sharpness,
+)
+from ccjax.sharpening.wrapper import EstimatorFit, Sharpened, estimator_fit, sharpened, sharpened_world
 
-from ccjax.sharpening.learned import LearnedSharpening as LearnedSharpening
-from ccjax.sharpening.learned import learned_sharpening as learned_sharpening
-from ccjax.sharpening.learned import scene_losses as scene_losses
-from ccjax.sharpening.new_method import NEGATIVE_TOLERANCE as NEGATIVE_TOLERANCE
-from ccjax.sharpening.new_method import POSITIVITY_OFFSET as POSITIVITY_OFFSET
-from ccjax.sharpening.new_method import DatabaseStatistics as DatabaseStatistics
-from ccjax.sharpening.new_method import NewSharpening as NewSharpening
-from ccjax.sharpening.new_method import ObjectiveTerms as ObjectiveTerms
-from ccjax.sharpening.new_method import new_sharpening as new_sharpening
-from ccjax.sharpening.new_method import objective as objective
-from ccjax.sharpening.new_method import objective_terms as objective_terms
-from ccjax.sharpening.new_method import on_sphere as on_sphere
-from ccjax.sharpening.transforms import THESIS_SCALE as THESIS_SCALE
-from ccjax.sharpening.transforms import actual_error as actual_error
-from ccjax.sharpening.transforms import average_sharpening as average_sharpening
-from ccjax.sharpening.transforms import best_diagonal_map as best_diagonal_map
-from ccjax.sharpening.transforms import best_linear_error as best_linear_error
-from ccjax.sharpening.transforms import best_linear_map as best_linear_map
-from ccjax.sharpening.transforms import database_responses as database_responses
-from ccjax.sharpening.transforms import database_sharpening as database_sharpening
-from ccjax.sharpening.transforms import diagonal_error as diagonal_error
-from ccjax.sharpening.transforms import mapping_error as mapping_error
-from ccjax.sharpening.transforms import normalise_transform as normalise_transform
-from ccjax.sharpening.transforms import optimal_sharpening as optimal_sharpening
-from ccjax.sharpening.transforms import sharpness as sharpness
-from ccjax.sharpening.wrapper import EstimatorFit as EstimatorFit
-from ccjax.sharpening.wrapper import Sharpened as Sharpened
-from ccjax.sharpening.wrapper import estimator_fit as estimator_fit
-from ccjax.sharpening.wrapper import sharpened as sharpened
-from ccjax.sharpening.wrapper import sharpened_world as sharpened_world
-
-# Names that moved to the experiments layer (which sits above sharpening, so they cannot be
-# imported here eagerly); ``ccjax.sharpening.X`` still resolves for one release, with a warning.
-_MOVED = {
-    "SHARPENINGS": "ccjax.experiments.chapter5",
-    "COMPARISONS": "ccjax.experiments.chapter5",
-    "Chapter5Scenes": "ccjax.experiments.chapter5",
-    "Chapter5Data": "ccjax.experiments.chapter5",
-    "Chapter5Result": "ccjax.experiments.chapter5",
-    "chapter5_errors": "ccjax.experiments.chapter5",
-    "evaluate_transforms": "ccjax.experiments.chapter5",
-    "Reproduction51": "ccjax.experiments.chapter5_report",
-    "reproduce_5_1": "ccjax.experiments.chapter5_report",
-    "negative_lobes": "ccjax.experiments.chapter5_report",
-    "summary": "ccjax.experiments.chapter5_report",
-    "plot_sensors": "ccjax.experiments.chapter5_report",
-    "rank_cameras": "ccjax.experiments.chapter5_report",
-}
-
-
-def __getattr__(name: str):
-    if name in _MOVED:
-        warnings.warn(
-            f"ccjax.sharpening.{name} moved to {_MOVED[name]}.{name}; the old path goes in the next release",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return getattr(importlib.import_module(_MOVED[name]), name)
-    raise AttributeError(f"module 'ccjax.sharpening' has no attribute {name!r}")
+__all__ = [
+    "NEGATIVE_TOLERANCE",
+    "POSITIVITY_OFFSET",
+    "THESIS_SCALE",
+    "DatabaseStatistics",
+    "EstimatorFit",
+    "LearnedSharpening",
+    "NewSharpening",
+    "ObjectiveTerms",
+    "Sharpened",
+    "actual_error",
+    "average_sharpening",
+    "best_diagonal_map",
+    "best_linear_error",
+    "best_linear_map",
+    "database_responses",
+    "database_sharpening",
+    "diagonal_error",
+    "estimator_fit",
+    "learned_sharpening",
+    "mapping_error",
+    "new_sharpening",
+    "normalise_transform",
+    "objective",
+    "objective_terms",
+    "on_sphere",
+    "optimal_sharpening",
+    "scene_losses",
+    "sharpened",
+    "sharpened_world",
+    "sharpness",
+]

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
+from ccjax._adam import adam_init, adam_step
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.losses import angular_errors
 from ccjax.scenes import draw_scenes, sweep_keys
@@ -122,8 +123,6 @@ def learned_sharpening(
     Returns:
         :class:`LearnedSharpening`.
     """
-    import optax
-
     from ccjax.estimators import registry
 
     if loss not in LOSSES:
@@ -135,7 +134,6 @@ def learned_sharpening(
     whites = world.train_whites
     plain = registry.fit(estimator, world)
     n_lights, n_reflectances = train.shape[:2]
-    optimiser = optax.adam(learning_rate)
 
     @eqx.filter_jit
     def step(parameters, state, step_key):
@@ -145,12 +143,10 @@ def learned_sharpening(
             errors = scene_losses(p, estimator, loss, world, train, whites, draws.light, draws.surfaces, plain)
             return jnp.mean(errors**2)
 
-        value, grad = jax.value_and_grad(batch_loss)(parameters)
-        updates, state = optimiser.update(grad, state, parameters)
-        return optax.apply_updates(parameters, updates), state, value
+        return adam_step(batch_loss, parameters, state, learning_rate=learning_rate)
 
     parameters = jnp.eye(3, dtype=train.dtype)
-    state = optimiser.init(parameters)
+    state = adam_init(parameters)
     losses = []
     start = time.perf_counter()
     for index in range(steps):

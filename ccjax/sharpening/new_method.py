@@ -30,7 +30,13 @@ sharpened training responses negative (Barnard 1999 §5.3)."""
 
 
 class ObjectiveTerms(eqx.Module):
-    """The terms of eq. 5.4 for one ``T``: mapping ``E`` (eq. 5.1), positivity ``P`` (5.2), norm ``N`` (5.3)."""
+    """The terms of eq. 5.4 for one ``T`` (Barnard 1999 §5.3).
+
+    Attributes:
+        mapping: ``E``, the mapping error (eq. 5.1).
+        positivity: ``P``, the positivity penalty (eq. 5.2).
+        norm: ``N``, the norm penalty (eq. 5.3).
+    """
 
     mapping: Float[Array, ""]
     positivity: Float[Array, ""]
@@ -68,7 +74,15 @@ def objective_terms(
 
 class DatabaseStatistics(eqx.Module):
     """What ``E`` of eq. 5.1 needs from the training and canonical databases (computed once per
-    world; Barnard 1999 §5.3)."""
+    world; Barnard 1999 §5.3).
+
+    Attributes:
+        gram: ``(I, 3, 3)`` per training light, the Gram matrix of the responses.
+        cross: ``(I, 3, 3)`` per training light, responses times canonical responses.
+        train_mean: ``(I, 3)`` mean response per training light.
+        canonical_mean: ``(3,)`` mean canonical response.
+        canonical_square: sum of squared canonical responses.
+    """
 
     gram: Float[Array, "I 3 3"]
     cross: Float[Array, "I 3 3"]
@@ -161,7 +175,14 @@ class NewSharpening:
 
 def on_sphere(parameters: Float[Array, "3 3"]) -> Float[Array, "3 3"]:
     """``T`` with ``|T|_F^2 = 3`` exactly: the ``lambda_N -> infinity`` limit of eq. 5.3
-    (Barnard 1999 §5.3); the parametrisation of the new method and of learned sharpening."""
+    (Barnard 1999 §5.3); the parametrisation of the new method and of learned sharpening.
+
+    Arguments:
+        parameters: any non-zero ``(3, 3)`` matrix.
+
+    Returns:
+        ``parameters`` scaled to squared Frobenius norm 3.
+    """
     return parameters * jnp.sqrt(3.0 / jnp.sum(parameters**2))
 
 

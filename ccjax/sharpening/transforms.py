@@ -91,7 +91,10 @@ def best_diagonal_map(
     unknowns, ``argmin_d |((X T) * d) T^-1 - X_c|_F``.
 
     The mapped matrix is ``sum_k d_k y_k t_k`` (``y_k`` column k of ``X T``, ``t_k`` row k of
-    ``T^-1``), so the normal equations are ``((Y^T Y) * (U U^T)) d = diag(Y^T X_c U^T)``.
+    ``T^-1``): linear in ``d`` with a three-column design whose column k is ``vec(y_k t_k)``. It is
+    solved as least squares on that design rather than by its normal equations
+    ``((Y^T Y) * (U U^T)) d = diag(Y^T X_c U^T)``, whose condition number is the design's squared:
+    in float32 they fail for an ill-conditioned ``T``.
 
     Arguments:
         source: ``(S, 3)`` database under the scene light.
@@ -103,9 +106,9 @@ def best_diagonal_map(
     """
     sharp = source @ transform
     inverse = jnp.linalg.inv(transform)
-    gram = (sharp.T @ sharp) * (inverse @ inverse.T)
-    rhs = jnp.diagonal(sharp.T @ target @ inverse.T)
-    return jnp.linalg.solve(gram, rhs)
+    # Row (s, j) of the design: sharp[s, k] * inverse[k, j] for each unknown d_k.
+    design = (sharp[:, None, :] * inverse.T[None, :, :]).reshape(-1, 3)
+    return jnp.linalg.lstsq(design, target.reshape(-1))[0]
 
 
 def diagonal_error(

@@ -1,7 +1,8 @@
 """Training estimators on image sets (optax): the learnable parameters of each differentiable
 family (:mod:`.parameters`), training examples read from a folder (:mod:`.data`), the Adam loop
 with relighting augmentation, held-out error and early stopping (:mod:`.loop`), K-fold
-cross-validation and the model files (:mod:`.folds`).
+cross-validation (:mod:`.folds`); model files: :func:`ccjax.runs.store.save_trained` and
+:func:`ccjax.load_model`.
 
 Typical use::
 
@@ -10,24 +11,38 @@ Typical use::
     )
 """
 
-from ccjax.training.data import Examples as Examples
-from ccjax.training.data import load_examples as load_examples
-from ccjax.training.data import read_examples as read_examples
-from ccjax.training.data import source_examples as source_examples
-from ccjax.training.folds import CrossValidation as CrossValidation
-from ccjax.training.folds import FoldResult as FoldResult
-from ccjax.training.folds import assign_folds as assign_folds
-from ccjax.training.folds import cross_validate as cross_validate
-from ccjax.training.folds import load_model as load_model
-from ccjax.training.folds import read_folds as read_folds
-from ccjax.training.folds import save_trained as save_trained
-from ccjax.training.folds import train_on_images as train_on_images
-from ccjax.training.loop import Schedule as Schedule
-from ccjax.training.loop import TrainingLog as TrainingLog
-from ccjax.training.loop import angular_errors as angular_errors
-from ccjax.training.loop import fit_to_examples as fit_to_examples
-from ccjax.training.loop import predict as predict
-from ccjax.training.loop import subsample as subsample
-from ccjax.training.parameters import constrain as constrain
-from ccjax.training.parameters import learnable as learnable
-from ccjax.training.parameters import learnable_types as learnable_types
+from ccjax.training.data import Examples, load_examples, read_examples, source_examples
+from ccjax.training.folds import (
+    CrossValidation,
+    FoldResult,
+    assign_folds,
+    cross_validate,
+    read_folds,
+    train_on_images,
+)
+from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples, predict, subsample
+from ccjax.training.parameters import constrain, learnable, learnable_types
+from ccjax.training.procedures import train_model
+
+__all__ = [
+    "CrossValidation",
+    "Examples",
+    "FoldResult",
+    "Schedule",
+    "TrainingLog",
+    "angular_errors",
+    "assign_folds",
+    "constrain",
+    "cross_validate",
+    "fit_to_examples",
+    "learnable",
+    "learnable_types",
+    "load_examples",
+    "predict",
+    "read_examples",
+    "read_folds",
+    "source_examples",
+    "subsample",
+    "train_model",
+    "train_on_images",
+]

@@ -1,22 +1,20 @@
 """Training estimators on image sets with K-fold cross-validation: reproducible fold assignment (or
 a ``fold`` column of the ground-truth CSV, as in the Gehler–Shi three-fold split), training within
-folds (never on the fold that is scored), and the model files."""
+folds (never on the fold that is scored); the model files are :func:`ccjax.runs.store.save_trained`'s."""
 
 from __future__ import annotations
 
 import os
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from ccjax._cache import FORMAT_VERSION, read_model_metadata, save_model
-from ccjax._cache import load_model as load_leaves
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.io.reading import MAX_PIXELS
 from ccjax.training.data import Examples, read_examples
-from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples
+from ccjax.training.loop import Schedule, TrainingLog, angular_errors
+from ccjax.training.procedures import train_model
 
 
 def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:
@@ -102,7 +100,12 @@ class FoldResult:
 @dataclass
 class CrossValidation:
     """K-fold results and the pooled errors (every example scored once, by the model trained
-    without its fold)."""
+    without its fold).
+
+    Attributes:
+        method: the method's label.
+        folds: one :class:`FoldResult` per fold.
+    """
 
     method: str
     folds: list[FoldResult] = field(default_factory=list)
@@ -164,81 +167,13 @@ def cross_validate(
     for fold in np.unique(folds):
         test = np.flatnonzero(folds == fold)
         train = np.flatnonzero(folds != fold)  # never the scored fold (early stopping splits these)
-        trained, log = fit_to_examples(model, examples.take(train), schedule, progress=progress)
+        trained, log = train_model(model, examples.take(train), schedule, progress=progress)
         errors = angular_errors(trained, examples.take(test))
         result.folds.append(
             FoldResult(int(fold), [names[i] for i in test], errors, untrained[test], log, [names[i] for i in train])
         )
         models.append(trained)
     return result, models
-
-
-# ---------------------------------------------------------------------------------------------
-# model files (the house format: leaves + a versioned JSON record, ccjax._cache.save_model)
-
-
-def save_trained(
-    path: str | os.PathLike,
-    model: AbstractEstimator,
-    *,
-    label: str,
-    camera: str,
-    world_seed: int = 0,
-    schedule: Schedule | None = None,
-    log: TrainingLog | None = None,
-    overwrite: bool = True,
-) -> Path:
-    """Write a trained model: its leaves and a JSON record (format version, label, the camera and
-    world seed its start was fitted to, the schedule and training log).
-
-    Arguments:
-        path: the model file; the record goes beside it (``path.with_suffix(".json")``).
-        model: the trained estimator.
-        label, camera, world_seed: what rebuilds its skeleton (:func:`load_model`).
-        schedule, log: the training, for the record.
-        overwrite: replace existing files (else ``FileExistsError``).
-
-    Returns:
-        The model file's path.
-    """
-    metadata = {
-        "kind": "trained-estimator",
-        "label": label,
-        "camera": camera,
-        "world_seed": int(world_seed),
-        "schedule": asdict(schedule) if schedule is not None else None,
-        "log": log.as_dict() if log is not None else None,
-    }
-    return save_model(Path(path), model, metadata, replace=overwrite)
-
-
-def load_model(path: str | os.PathLike) -> AbstractEstimator:
-    """Read a model written by :func:`save_trained` (format :data:`ccjax._cache.FORMAT_VERSION`):
-    its skeleton is the label fitted to the recorded camera's default world, its leaves the file's.
-
-    Arguments:
-        path: the model file (as written by :func:`save_trained`, e.g. by ``ccjax train --out``).
-
-    Returns:
-        The trained estimator: the recorded method label fitted to ``World.default(camera,
-        seed=world_seed)`` from the file's record, with every array leaf replaced by the file's.
-
-    Raises:
-        ValueError: not a trained-model file, another format version, or leaves that do not fit.
-    """
-    from ccjax.runs import store
-
-    path = Path(path)
-    record = read_model_metadata(path)
-    if record.get("kind") != "trained-estimator" or "label" not in record:
-        raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
-    for field_name, kind in (("label", str), ("camera", str), ("world_seed", int)):
-        value = record.get(field_name, 0 if field_name == "world_seed" else None)
-        if not isinstance(value, kind) or isinstance(value, bool):
-            raise ValueError(f"model: the record of {path} gives {field_name} {value!r}; expected a {kind.__name__}")
-    world = store.world("default", record["camera"], seed=record.get("world_seed", 0))
-    skeleton = store.fit(record["label"], world)
-    return load_leaves(path, skeleton)
 
 
 def train_on_images(
@@ -303,16 +238,10 @@ def train_on_images(
     if folds is not None:
         assignment = assign_folds(examples.names, folds, seed=fold_seed, given=table.folds)
         validation, _ = cross_validate(start, examples, assignment, schedule, method=method, progress=progress)
-    model, log = fit_to_examples(start, examples, schedule, progress=progress)
+    model, log = train_model(start, examples, schedule, progress=progress)
     if out is not None:
-        save_trained(
-            out,
-            model,
-            label=method,
-            camera=camera,
-            world_seed=world_seed,
-            schedule=schedule,
-            log=log,
-            overwrite=overwrite,
+        record = {"schedule": asdict(schedule), "log": log.as_dict()}
+        store.save_trained(
+            out, model, label=method, camera=camera, world_seed=world_seed, record=record, overwrite=overwrite
         )
     return model, log, validation

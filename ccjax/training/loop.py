@@ -12,11 +12,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 from tqdm.auto import tqdm
 
 from ccjax import augment, losses, metrics
+from ccjax._adam import adam_init, adam_step
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.runs import hosts
 from ccjax.training.data import Examples
@@ -72,7 +72,17 @@ class Schedule:
 @dataclass
 class TrainingLog:
     """What happened: per-epoch mean training loss and held-out angular error (degrees); wall and
-    CPU (process) seconds of the whole fit."""
+    CPU (process) seconds of the whole fit.
+
+    Attributes:
+        train_loss: mean training loss per epoch.
+        heldout_median, heldout_mean: held-out angular error per epoch (degrees).
+        initial_median: held-out median before training.
+        best_epoch: the epoch whose parameters were kept.
+        stopped_early: early stopping ended the fit.
+        seconds, cpu_seconds: wall and process CPU time of the fit.
+        n_train, n_heldout: number of training and held-out examples.
+    """
 
     train_loss: list[float] = field(default_factory=list)
     heldout_median: list[float] = field(default_factory=list)
@@ -93,7 +103,17 @@ def subsample(
     key: PRNGKeyArray, x: Float[Array, "B P 3"], mask: Bool[Array, "B P"], count: int
 ) -> tuple[Float[Array, "B S 3"], Bool[Array, "B S"]]:
     """``count`` slots of each surface list, its valid surfaces first in a random order (a uniform
-    subset of them when there are more than ``count``)."""
+    subset of them when there are more than ``count``).
+
+    Arguments:
+        key: PRNG key.
+        x: ``(B, P, 3)`` surface lists.
+        mask: ``(B, P)`` valid surfaces.
+        count: slots kept per list.
+
+    Returns:
+        ``(x (B, count, 3), mask (B, count))``.
+    """
     noise = jax.random.uniform(key, mask.shape)
     order = jnp.argsort(jnp.where(mask, noise, noise + 2.0), axis=-1)[:, :count]
     return jnp.take_along_axis(x, order[..., None], axis=1), jnp.take_along_axis(mask, order, axis=1)
@@ -107,6 +127,11 @@ def _batch_estimates(model, x, mask):
 
 def predict(model: AbstractEstimator, examples: Examples, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """The model's estimates for every example, in fixed-size chunks (one compilation).
+
+    Arguments:
+        model: the estimator.
+        examples: the examples.
+        chunk: examples per compiled call.
 
     Returns:
         ``(illuminants (N, 3), ok (N,))`` as NumPy arrays.
@@ -124,7 +149,15 @@ def predict(model: AbstractEstimator, examples: Examples, chunk: int = 64) -> tu
 
 
 def angular_errors(model: AbstractEstimator, examples: Examples) -> np.ndarray:
-    """Per-example recovery angular error (degrees) of ``model``."""
+    """Per-example recovery angular error (degrees) of ``model``.
+
+    Arguments:
+        model: the estimator.
+        examples: the examples, with their true lights.
+
+    Returns:
+        ``(N,)`` angular errors in degrees.
+    """
     estimates, _ = predict(model, examples)
     return np.asarray(metrics.angular_error(jnp.asarray(estimates), examples.illuminant))
 
@@ -133,10 +166,6 @@ def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     order = np.random.default_rng(seed).permutation(n)
     held = max(1, int(round(fraction * n)))
     return np.sort(order[held:]), np.sort(order[:held])
-
-
-def _optimiser(learning_rate: float):
-    return optax.adam(learning_rate)
 
 
 @eqx.filter_jit
@@ -155,12 +184,7 @@ def _step(params, static, opt_state, x, mask, illuminant, targets, key, schedule
         estimate = jax.vmap(model)(x, mask).illuminant
         return losses.illuminant_loss(schedule.loss, estimate, illuminant)
 
-    loss, grads = jax.value_and_grad(loss_of)(params)
-    # optax's bias correction raises a float32 decay to an int32 step count; run it under JAX's
-    # standard promotion (as the neural-net training does) so strict-promotion callers can train.
-    with jax.numpy_dtype_promotion("standard"):
-        updates, opt_state = _optimiser(schedule.learning_rate).update(grads, opt_state, params)
-    params = eqx.apply_updates(params, updates)
+    params, opt_state, loss = adam_step(loss_of, params, opt_state, learning_rate=schedule.learning_rate)
     model = constrain(eqx.combine(params, static))
     params, _ = eqx.partition(model, learnable(model))
     return params, opt_state, loss
@@ -207,7 +231,7 @@ def fit_to_examples(
         validation, examples = examples.take(held_index), examples.take(train_index)
     batch = min(schedule.batch_size, len(examples))
     params, static = eqx.partition(model, spec)
-    opt_state = _optimiser(schedule.learning_rate).init(params)
+    opt_state = adam_init(params)
     targets = examples.illuminant
     if mesh is not None:
         devices = mesh.devices.size

@@ -8,11 +8,13 @@ import jax
 
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.estimators.correlation import ColourByCorrelation, ColourByCorrelation3D
+from ccjax.estimators.ffcc import FFCC
 from ccjax.estimators.neural import LogChromaNet, NeuralNet
 from ccjax.estimators.spatial import GreyEdge
 
 # What each family learns: the Colour by Correlation matrix (Barnard 1999 §4.5.4, ch. 10; starts
-# from the camera's spectral fit), grey edge's Minkowski norm, the net's weights (§4.5.5). (A
+# from the camera's spectral fit), grey edge's Minkowski norm, the net's weights (§4.5.5), FFCC's
+# filters and bias map (Barron & Tsai 2017 §3). (A
 # sharpened model's inner estimator is fitted to the sharpened world, so its transform is learned
 # through a traceable fit instead: ccjax.sharpening.learned.)
 _LEARNABLE = {
@@ -21,11 +23,16 @@ _LEARNABLE = {
     GreyEdge: lambda m: m.p,
     NeuralNet: lambda m: m.net,
     LogChromaNet: lambda m: m.net,
+    FFCC: lambda m: (m.filters, m.bias),
 }
 
 
 def learnable_types() -> tuple[str, ...]:
-    """Names of the model types :func:`learnable` knows."""
+    """Names of the model types :func:`learnable` knows.
+
+    Returns:
+        The class names.
+    """
     return tuple(kind.__name__ for kind in _LEARNABLE)
 
 
@@ -52,7 +59,14 @@ def learnable(model: AbstractEstimator):
 
 def constrain(model: AbstractEstimator) -> AbstractEstimator:
     """Re-establish what a learned model must satisfy after an update: grey edge's Minkowski norm
-    stays a norm (>= 1)."""
+    stays a norm (>= 1).
+
+    Arguments:
+        model: the updated model.
+
+    Returns:
+        The model with its constraints re-established.
+    """
     import jax.numpy as jnp
 
     if isinstance(model, GreyEdge):

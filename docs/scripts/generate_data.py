@@ -91,13 +91,13 @@ def compare(args) -> None:
 def world(args) -> None:
     import numpy as np
 
-    from ccjax.spectra import chromaticity
+    from ccjax._colour import rg_numpy
     from ccjax.world import World
 
     w = World.barnard1999(args.data_dir)
 
     def rg(rgb) -> list:
-        return np.round(chromaticity(np.asarray(rgb, np.float64)), 5).tolist()
+        return np.round(rg_numpy(np.asarray(rgb, np.float64)), 5).tolist()
 
     payload = {
         "world": w.name,

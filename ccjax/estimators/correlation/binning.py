@@ -8,8 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax._colour import chromaticity, rg_bin, rg_numpy
-from ccjax._colour import valid_pixels as valid_pixels  # re-exported: the kernels' evidence test
+from ccjax._colour import rg, rg_bin, rg_numpy
 
 RG_BINS = 50
 """(r,g) divisions: bins of width 0.02, as the thesis' C-by-C and neural net (§4.5.4)."""
@@ -18,7 +17,7 @@ N_RG_CELLS = RG_BINS * (RG_BINS + 1) // 2  # bins (i, j) with i + j <= 49
 
 def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:
     """(r,g) bin coordinates ``floor(50 r), floor(50 g)`` clipped to ``0..49`` (§4.5.4), from the
-    scale-free :func:`chromaticity`; a black pixel lands in the achromatic bin (the kernels ignore
+    scale-free :func:`ccjax._colour.rg`; a black pixel lands in the achromatic bin (the kernels ignore
     black pixels).
 
     Arguments:
@@ -28,7 +27,7 @@ def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:
         ``(..., 2)`` integer bin indices ``(i, j)`` in ``0..49`` of ``r = R/(R+G+B)`` and
         ``g = G/(R+G+B)``; the flat bin (a correlation-matrix row) is ``50 i + j``.
     """
-    return rg_bin(chromaticity(rgb), RG_BINS)
+    return rg_bin(rg(rgb), RG_BINS)
 
 
 def rg_bins_np(rgb: np.ndarray) -> np.ndarray:
@@ -135,7 +134,7 @@ def soft_presence_scores(
         ``(I,)`` per illuminant, the sum over bins of presence probability times the bin's row.
     """
     # Black pixels sit at the achromatic point; their weights are zeroed by ``valid``.
-    scaled = chromaticity(rgb) * RG_BINS
+    scaled = rg(rgb) * RG_BINS
     (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
     ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
     cells = (ri[:, :, None] * RG_BINS + gi[:, None, :]).reshape(-1)

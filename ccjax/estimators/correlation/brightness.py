@@ -11,16 +11,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax._colour import rg_to_rgb
+from ccjax._colour import rg, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
 from ccjax.estimators.correlation.binning import (
     RG_BINS,
-    chromaticity,
     compact_rg_cells,
     rg_bins,
     soft_axis,
     soft_presence_score,
-    valid_pixels,
 )
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
@@ -130,7 +128,7 @@ class ColourByCorrelation3D(AbstractWorldSurfaceEstimator):
         outside = self.log_probability.shape[0] - 1
         # The scale-free chromaticity, as the hard path's ``rg_bins``: a dark but valid scene (x1e-12)
         # must not read as black. Black pixels (achromatic point) get zero weight through ``valid``.
-        scaled = chromaticity(rgb) * RG_BINS
+        scaled = rg(rgb) * RG_BINS
         (ri, rw), (gi, gw) = soft_axis(scaled[:, 0], softness), soft_axis(scaled[:, 1], softness)
         ri, gi = jnp.clip(ri, 0, RG_BINS - 1), jnp.clip(gi, 0, RG_BINS - 1)
         rg_cell = jnp.asarray(RG_CELLS)[ri[:, :, None] * RG_BINS + gi[:, None, :]]  # (P, 2, 2)

@@ -12,9 +12,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax._colour import rg_numpy, rg_to_rgb
+from ccjax._colour import rg_numpy, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
-from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores, valid_pixels
+from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores
 from ccjax.estimators.correlation.fitting import (
     DEFAULT_TEMPERATURE,
     check_positive,

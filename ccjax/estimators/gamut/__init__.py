@@ -24,6 +24,7 @@ __all__ = [
     "Grid",
     "GridOptions",
     "SoftGamutMapping",
+    "cip",
     "cone_planes",
     "estimate_all",
     "evaluate",
@@ -98,4 +99,4 @@ _register(
 
 # The 2-D family (its labels register on import) after the 3-D ones, so the registry lists them in
 # the thesis' order.
-from ccjax.estimators.gamut import cip as cip  # noqa: E402
+from ccjax.estimators.gamut import cip  # noqa: E402

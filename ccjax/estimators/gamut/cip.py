@@ -34,8 +34,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax._colour import rg_numpy
-from ccjax.estimators.base import TINY, AbstractSurfaceEstimator, Estimate, Padding
+from ccjax._colour import TINY, rg_numpy
+from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
 from ccjax.estimators.gamut import constraints_cip, geometry
 from ccjax.estimators.gamut.engine import GridOptions, directions, locate, pattern_search, square_grid
 from ccjax.estimators.gamut.relaxation import relaxation_level

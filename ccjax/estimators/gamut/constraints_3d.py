@@ -66,9 +66,9 @@ from ccjax.estimators.gamut.engine import (
 OFF_ORIGIN = -1.0
 OFF_TOP = -1e20
 # Small scenes of at least this many slots read only their usable observations (a sweep pads 4
-# to 32 surfaces: ND-ECRULE-MV 3.1 -> 0.85 s per 1,000 scenes); with fewer, the counted loops'
-# fixed cost outweighs what they skip (measured at 8 surfaces, interleaved: ECRULE-MV 1,961-2,095
-# -> 1,861-1,873 scenes/s, ECRULE-SCWIA-12 3,056-3,513 -> 2,562-3,109 counted).
+# to 32 surfaces: ND-ECRULE-MV about 3.6x faster); with fewer, the counted loops' fixed cost
+# outweighs what they skip (measured at 8 surfaces: ECRULE-MV and ECRULE-SCWIA-12 5-15 % slower
+# counted).
 COUNTED_SLOTS = 16
 # Observations dimmer than this fraction of the scene's brightest do not constrain (relative, so
 # the scene's scale does not matter).
@@ -381,8 +381,8 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
     # those (masked slots never bind: the same maxima, bitwise). On a reduced scene MV's
     # refinement keeps the full scan: for its 25 directions per step the loop's overhead
     # outweighs the few slots it would skip (measured 1.3x slower at 256 and 1,024 surfaces); on
-    # a small one it reads the usable ones only (a scene padded from 4 to 32 slots: 0.85 s per
-    # 1,000 scenes of ND-ECRULE-MV instead of 3.1 s).
+    # a small one it reads the usable ones only (a scene padded from 4 to 32 slots: ND-ECRULE-MV
+    # about 3.6x faster).
     kept = None
     if size > options.fine_observations:
         index, keep, exact = _support_index(model, q, usable, lo, hi, options)

@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.base import TINY
+from ccjax._colour import TINY
 from ccjax.estimators.gamut.engine import OUTSIDE, directions
 
 

@@ -140,8 +140,7 @@ def form(coef: Float[Array, "3"], xt: Float[Array, "3 G"]) -> Float[Array, " G"]
     return coef[0] * xt[0] + coef[1] * xt[1] + coef[2] * xt[2]
 
 
-# Linear forms per step of :func:`max_of_forms` (8 and 16 measured alike, about 12 G forms/s on 2
-# cores; 8 compiles faster).
+# Linear forms per step of :func:`max_of_forms` (8 and 16 measured alike; 8 compiles faster).
 FORMS_PER_STEP = 8
 
 

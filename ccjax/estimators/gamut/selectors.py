@@ -25,7 +25,8 @@ import functools
 import jax.numpy as jnp
 from jaxtyping import Array
 
-from ccjax.estimators.base import TINY, Estimate
+from ccjax._colour import TINY
+from ccjax.estimators.base import Estimate
 from ccjax.estimators.gamut import average, mv, scwia
 from ccjax.estimators.gamut.constraints_3d import Grid
 from ccjax.estimators.gamut.engine import OUTSIDE, directions

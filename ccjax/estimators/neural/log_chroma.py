@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
-from ccjax.estimators.base import TINY, AbstractWorldSurfaceEstimator, Estimate, with_fallback
+from ccjax._colour import TINY
+from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
 
 LOG_CHROMA_BINS = 32
 LOG_CHROMA_EXTENT = 2.0

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
-from ccjax._colour import chromaticity, rg_bin, rg_to_rgb, valid_pixels
+from ccjax._colour import rg, rg_bin, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, Status
 
 BINS = 50
@@ -28,7 +28,7 @@ RGB estimate is positive and the diagonal map to canonical exists."""
 
 def histogram_bins(rgb: Float[Array, "P 3"]) -> Int[Array, " P"]:
     """Flat (r,g) bin index ``floor(r * 50) * 50 + floor(g * 50)`` of each pixel (bins clamped to
-    0..49; scale-free, :func:`ccjax._colour.chromaticity`; black pixels land in the achromatic bin
+    0..49; scale-free, :func:`ccjax._colour.rg`; black pixels land in the achromatic bin
     and are masked by the callers).
 
     Arguments:
@@ -37,7 +37,7 @@ def histogram_bins(rgb: Float[Array, "P 3"]) -> Int[Array, " P"]:
     Returns:
         ``(P,)`` int32 bin indices in ``0 .. 2499``.
     """
-    cells = rg_bin(chromaticity(rgb), BINS)  # scale-free, as Colour by Correlation's bins
+    cells = rg_bin(rg(rgb), BINS)  # scale-free, as Colour by Correlation's bins
     return cells[..., 0] * BINS + cells[..., 1]
 
 

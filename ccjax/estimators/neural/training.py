@@ -10,10 +10,10 @@ from dataclasses import dataclass
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import optax
 from jaxtyping import Array, Float, PRNGKeyArray
 from tqdm.auto import tqdm
 
+from ccjax._adam import adam_init, adam_step
 from ccjax.estimators.neural.model import N_INPUTS, Mlp, occupied_bins
 from ccjax.scenes import SceneTables, Specular, sample_batch, scene_keys
 from ccjax.world import World
@@ -122,11 +122,6 @@ def training_loss(net: Mlp, histograms, targets) -> jax.Array:
     return jnp.mean(jnp.sum((predicted - targets) ** 2, axis=-1))
 
 
-# One optimiser object for every training run: its learning rate is a traced hyper-parameter set at
-# each step, so runs that differ only in their schedule share one compilation.
-_OPTIMISER = optax.inject_hyperparams(optax.adam)(learning_rate=0.0)
-
-
 def _cosine_rate(step, peak, total):
     """Cosine decay from ``peak`` to ``0.01 * peak`` over ``total`` steps (as ``optax.cosine_decay_schedule``)."""
     progress = jnp.minimum(step / total, 1.0)
@@ -139,14 +134,9 @@ def _train_chunk(net, opt_state, keys, steps, tables, recipe, batch_size, peak_r
         net, opt_state = carry
         key, index = inputs
         histograms, targets = training_batch(key, tables, recipe, batch_size)
-        loss, grads = eqx.filter_value_and_grad(training_loss)(net, histograms, targets)
         rate = _cosine_rate(index, peak_rate, total_steps)
-        opt_state.hyperparams["learning_rate"] = rate.astype(opt_state.hyperparams["learning_rate"].dtype)
-        # optax's bias correction raises a float32 decay to the int32 step count; the suite's strict
-        # promotion would refuse it, so optax runs under JAX's standard rules (the values it had).
-        with jax.numpy_dtype_promotion("standard"):
-            updates, opt_state = _OPTIMISER.update(grads, opt_state, net)
-        return (eqx.apply_updates(net, updates), opt_state), loss
+        net, opt_state, loss = adam_step(training_loss, net, opt_state, histograms, targets, learning_rate=rate)
+        return (net, opt_state), loss
 
     (net, opt_state), losses = jax.lax.scan(step, (net, opt_state), (keys, steps))
     return net, opt_state, losses
@@ -194,7 +184,7 @@ def train(
     key_init, key_train = jax.random.split(jax.random.key(schedule.seed))
     net = Mlp(key_init, recipe.sizes())
     tables = SceneTables.from_world(training_world(world))
-    opt_state = _OPTIMISER.init(eqx.filter(net, eqx.is_array))
+    opt_state = adam_init(net)
     peak_rate = jnp.asarray(schedule.learning_rate, jnp.float32)
     total_steps = jnp.asarray(schedule.steps, jnp.float32)
     losses = []
