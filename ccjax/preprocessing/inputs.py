@@ -13,6 +13,7 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.reading import LinearImage
+from ccjax.precision import matmul
 from ccjax.preprocessing.methods import Preprocessing, as_preprocessing, padded_size, surfaces
 from ccjax.preprocessing.rules import DEFAULT_DARK, DEFAULT_PERCENTILE, PIXELS, usable_pixels
 
@@ -213,7 +214,7 @@ def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[A
     """
     height, width, _ = rgb.shape
     rows = jnp.where(mask[..., None], rgb, 0.0).reshape(height, width * 3)
-    total = (jnp.ones((height,), rgb.dtype) @ rows).reshape(width, 3).sum(axis=0)
+    total = matmul(jnp.ones((height,), rgb.dtype), rows).reshape(width, 3).sum(axis=0)
     return total / jnp.maximum(jnp.sum(mask, dtype=rgb.dtype), 1.0)  # exact counts up to 2**24 pixels
 
 
