@@ -36,6 +36,7 @@ RGB_VALUED = ("rgb", "brightness", "map_rgb")
 """Statistics on the RGB scale: they apply only to methods estimating the light's brightness (3-D
 methods), and are multiplied by the thesis' white = 255 when compared with its tables."""
 
+
 def scene_errors(model: AbstractEstimator, scenes: Scenes, canonical_white: Float[Array, " 3"]) -> dict[str, jax.Array]:
     """Per-scene errors of one model on a scene batch (Barnard 1999 §4.2), plus ``ok`` and ``status``.
 
