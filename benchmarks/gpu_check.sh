@@ -15,6 +15,7 @@
 #     PYTHON=python3          the interpreter
 #     GPU_CHECK_QUICK=1       small sizes (a few minutes on a CPU): checks the script, not the targets
 #     GPU_CHECK_BUDGET=300    seconds for the whole run; the test suite gets what is left
+#                             (default 1200 with GPU_CHECK_QUICK=1, for slow CPUs)
 #     GPU_CHECK_WORKERS=6     pytest-xdist workers for the suite
 # On a machine without a GPU it runs the same steps on the CPU (the figures are then the CPU's).
 set -uo pipefail
@@ -26,7 +27,11 @@ fi
 OUT=$1
 mkdir -p "$OUT" || exit 2
 PYTHON=${PYTHON:-python3}
-BUDGET=${GPU_CHECK_BUDGET:-300}
+if [ "${GPU_CHECK_QUICK:-0}" = 1 ]; then
+    BUDGET=${GPU_CHECK_BUDGET:-1200}
+else
+    BUDGET=${GPU_CHECK_BUDGET:-300}
+fi
 WORKERS=${GPU_CHECK_WORKERS:-6}
 START=$SECONDS
 HERE=$(cd "$(dirname "$0")" && pwd)

@@ -90,10 +90,10 @@ def add_compare(sub) -> None:
 
 
 def run_compare(args) -> int:
-    start = time.perf_counter()
     import jax
 
     from ccjax import _cache, experiments
+    from ccjax.cli import STARTED as start
     from ccjax.runs.compilation import CompileLog
 
     imported = time.perf_counter()
