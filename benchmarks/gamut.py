@@ -5,7 +5,13 @@ Prints, on World.barnard1999 with compiled (warm) functions, in one run:
   machine shows in the wall figures; the CPU figures divide by this process's CPU seconds);
 * throughput in scenes/s at 8, 64, 256 and 1024 surfaces: wall clock, and per CPU-second of
   this process times the core count, with the CPU cost per observed point (us per scene per
-  surface) so the scaling with the scene size is visible;
+  surface) so the scaling with the scene size is visible; beside it the achieved FLOP/s and
+  bytes/s from XLA's cost analysis of the compiled program (``compiled.cost_analysis()``; it
+  counts a loop's body once, so these are lower bounds) and, where the device's float32 peak is
+  known (or given with ``--peak-tflops``), the fraction of it. Batches are the library's shapes
+  for the backend: ``--blocks`` blocks of :func:`ccjax.backends.block_scenes` at 8 surfaces,
+  proportionally fewer (at least one) at larger sizes, so a run lasts about as long at every
+  size;
 * the exact SciPy oracle of tests/gamut_oracle.py (Qhull halfspace intersection and exact
   centroid, i.e. CRULE-AVE) on the first ``--oracle-scenes`` scenes of the same batches (one
   core), and the ratios ccjax CRULE-AVE / oracle, wall and CPU-normalised;
@@ -17,7 +23,8 @@ Prints, on World.barnard1999 with compiled (warm) functions, in one run:
   ratio of their CPU-normalised throughputs (acceptance: within 2x).
 
 Usage: python benchmarks/gamut.py [--repeats 3] [--surfaces 8,64,256,1024] [--oracle-scenes 100]
-       [--sweep-scenes 100000] [--extended] [--extended-surfaces 8,64]
+       [--sweep-scenes 100000] [--extended] [--extended-surfaces 8,64] [--blocks 32]
+       [--peak-tflops X]
        (``--surfaces ''`` skips the main table)
 """
 
@@ -40,6 +47,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 import gamut_oracle as oracle  # pyright: ignore[reportMissingImports]  (tests/ on sys.path above)
 
 from ccjax import experiments, preprocessing, scenes
+from ccjax.backends import block_scenes
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch
 from ccjax.io.reading import LinearImage
@@ -53,7 +61,25 @@ EXTENDED = (
     "SP-ND-ECRULE-SCWIA-6",
     "ND-ECRULE-SCWIA-12",
 )
-BATCH = {8: 4096, 64: 1024, 256: 256, 1024: 128}
+# float32 peak (no tensor cores) of the devices ccjax was measured on, FLOP/s (vendor figures).
+PEAK_FLOPS = {"NVIDIA H200": 67e12, "NVIDIA H100 80GB HBM3": 67e12, "NVIDIA H100": 67e12}
+
+
+def batch_scenes(n_surfaces: int, blocks: int) -> int:
+    """Scenes per timed batch: ``blocks`` of the library's blocks at 8 surfaces, proportionally
+    fewer at larger sizes (at least one block)."""
+    return block_scenes(jax.default_backend()) * max(1, blocks * 8 // n_surfaces)
+
+
+def cost_rates(model, rgb, mask, seconds: float, peak: float | None) -> str:
+    """Achieved FLOP/s and bytes/s of one compiled batch (XLA's cost analysis), and the fraction
+    of the float32 peak."""
+    analysis = _estimate.lower(model, rgb, mask).compile().compiled.cost_analysis()
+    if isinstance(analysis, list):  # older jax: one dict per program
+        analysis = analysis[0]
+    flops, moved = float(analysis.get("flops", 0.0)), float(analysis.get("bytes accessed", 0.0))
+    line = f"{flops / seconds / 1e9:8.2f} GFLOP/s, {moved / seconds / 1e9:7.2f} GB/s"
+    return line + (f" ({flops / seconds / peak:.2e} of fp32 peak)" if peak else "")
 
 
 @eqx.filter_jit
@@ -101,22 +127,23 @@ def _base_label(label: str) -> str:
     return match.group(1)
 
 
-def _extended(world, labels, surfaces, repeats, cores):
+def _extended(world, labels, surfaces, repeats, cores, blocks):
     """Throughput of each extended label beside its base method (issue 13: within 2x)."""
     bases = sorted({_base_label(label) for label in labels})
     models = {label: registry.fit(label, world) for label in [*bases, *labels]}
     print(f"extended labels beside their base method (median of {repeats} warm runs):")
     for n in surfaces:
         print(f"-- {n} surfaces, {_load()}")
-        batch = scenes.sample(jax.random.key(1000 + n), world, BATCH[n], n)
+        size = batch_scenes(n, blocks)
+        batch = scenes.sample(jax.random.key(1000 + n), world, size, n)
         cpu_rates = {}
         for label in [*bases, *labels]:
             model = models[label]
             jax.block_until_ready(_estimate(model, batch.rgb, batch.mask))
             wall, cpu = _timed(lambda model=model, batch=batch: _estimate(model, batch.rgb, batch.mask), repeats)
-            cpu_rates[label] = BATCH[n] / cpu * cores
+            cpu_rates[label] = size / cpu * cores
             line = (
-                f"  {label:<22}{n:>6} surfaces: {BATCH[n] / wall:>8.0f} scenes/s wall, "
+                f"  {label:<22}{n:>6} surfaces: {size / wall:>8.0f} scenes/s wall, "
                 f"{cpu_rates[label]:>8.0f} scenes/s cpu"
             )
             if label in labels:
@@ -160,15 +187,24 @@ def main() -> None:
     parser.add_argument("--extended", action="store_true", help="also the extended labels beside their base method")
     parser.add_argument("--extended-labels", default=",".join(EXTENDED))
     parser.add_argument("--extended-surfaces", default="8,64")
+    parser.add_argument("--blocks", type=int, default=32, help="blocks of the library's size per batch at 8 surfaces")
+    parser.add_argument(
+        "--peak-tflops", type=float, default=None, help="the device float32 peak (default: known devices)"
+    )
     args = parser.parse_args()
     surfaces = [int(n) for n in args.surfaces.split(",") if n]
     for n in surfaces + [int(n) for n in args.extended_surfaces.split(",") if n]:
-        if n not in BATCH:
-            raise ValueError(f"--surfaces: each count must be one of {sorted(BATCH)}, got {n}")
+        if n < 1:
+            raise ValueError(f"--surfaces: each count must be positive, got {n}")
+    if args.blocks < 1:
+        raise ValueError(f"--blocks: must be positive, got {args.blocks}")
     labels = args.labels.split(",")
     cores = os.cpu_count() or 1
+    kind = jax.devices()[0].device_kind
+    peak = args.peak_tflops * 1e12 if args.peak_tflops else PEAK_FLOPS.get(kind)
 
-    print(f"jax {jax.__version__}, device {jax.devices()[0].device_kind} ({jax.default_backend()}), cpus {cores}")
+    print(f"jax {jax.__version__}, device {kind} ({jax.default_backend()}), cpus {cores}")
+    print(f"block {block_scenes(jax.default_backend())} scenes (ccjax.backends); fp32 peak {peak or 'unknown'} FLOP/s")
     print(_load())
     world = World.barnard1999()
     start = time.perf_counter()
@@ -183,31 +219,34 @@ def main() -> None:
     )
     for n in surfaces:
         print(f"-- {n} surfaces, {_load()}")
-        batch = scenes.sample(jax.random.key(n), world, BATCH[n], n)
+        size = batch_scenes(n, args.blocks)
+        batch = scenes.sample(jax.random.key(n), world, size, n)
         rates = {}
         for label, model in models.items():
             start = time.perf_counter()
             jax.block_until_ready(_estimate(model, batch.rgb, batch.mask))
             first = time.perf_counter() - start
             wall, cpu = _timed(lambda model=model, batch=batch: _estimate(model, batch.rgb, batch.mask), args.repeats)
-            rates[label] = (BATCH[n] / wall, BATCH[n] / cpu)
+            rates[label] = (size / wall, size / cpu)
             print(
-                f"  {label:<16}{n:>6} surfaces: {BATCH[n] / wall:>8.0f} scenes/s wall, "
-                f"{BATCH[n] / cpu * cores:>8.0f} scenes/s cpu, {cpu / BATCH[n] / n * 1e6:>7.2f} us/point "
-                f"(batch {BATCH[n]}, first call {first:.1f} s)"
+                f"  {label:<16}{n:>6} surfaces: {size / wall:>8.0f} scenes/s wall, "
+                f"{size / cpu * cores:>8.0f} scenes/s cpu, {cpu / size / n * 1e6:>7.2f} us/point, "
+                f"{cost_rates(model, batch.rgb, batch.mask, wall, peak)} (batch {size}, first call {first:.1f} s)",
+                flush=True,
             )
         count = args.oracle_scenes
-        wall, cpu = _oracle(A, b, white, np.asarray(batch.rgb, np.float64), np.asarray(batch.mask), count)
-        line = (
-            f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {count / wall:>8.1f} scenes/s wall, "
-            f"{count / cpu:>8.1f} per CPU-second (one core, {count} scenes), {cpu / count / n * 1e6:.0f} us/point"
-        )
-        if "CRULE-AVE" in rates:
-            line += (
-                f" -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'][0] * wall / count:.1f}x wall, "
-                f"{rates['CRULE-AVE'][1] * cpu / count:.1f}x per CPU-second"
+        if count:
+            wall, cpu = _oracle(A, b, white, np.asarray(batch.rgb, np.float64), np.asarray(batch.mask), count)
+            line = (
+                f"  SciPy oracle CRULE-AVE{n:>6} surfaces: {count / wall:>8.1f} scenes/s wall, "
+                f"{count / cpu:>8.1f} per CPU-second (one core, {count} scenes), {cpu / count / n * 1e6:.0f} us/point"
             )
-        print(line)
+            if "CRULE-AVE" in rates:
+                line += (
+                    f" -> ccjax CRULE-AVE / oracle {rates['CRULE-AVE'][0] * wall / count:.1f}x wall, "
+                    f"{rates['CRULE-AVE'][1] * cpu / count:.1f}x per CPU-second"
+                )
+            print(line)
 
     if args.images:
         print(f"-- 64x64 images through the default preprocessing ({args.images} images), {_load()}")
@@ -223,7 +262,7 @@ def main() -> None:
 
     if args.extended:
         extended_surfaces = [int(n) for n in args.extended_surfaces.split(",") if n]
-        _extended(world, args.extended_labels.split(","), extended_surfaces, args.repeats, cores)
+        _extended(world, args.extended_labels.split(","), extended_surfaces, args.repeats, cores, args.blocks)
 
     if args.sweep_scenes:
         label = "ECRULE-SCWIA-12"

@@ -18,6 +18,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ccjax import data
+from ccjax.precision import matmul
 from ccjax.spectra import N_WAVELENGTHS, as_spectra, is_colour_distribution, to_colour
 
 
@@ -149,7 +150,7 @@ class Camera(eqx.Module):
         Returns:
             ``(..., 3)`` linear responses.
         """
-        return jnp.asarray(signal) @ self.sensors
+        return matmul(jnp.asarray(signal), self.sensors)
 
 
 def cameras(data_dir: str | os.PathLike | None = None) -> dict[str, str]:

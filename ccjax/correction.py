@@ -12,6 +12,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from ccjax.precision import einsum, matmul
+
 
 @jax.jit
 def correction_map(
@@ -28,11 +30,11 @@ def correction_map(
         ``M`` with ``corrected = M @ rgb``, scaled so that a grey keeps its R+G+B.
     """
     transform = jnp.eye(3, dtype=illuminant.dtype) if sharpening is None else jnp.asarray(sharpening, illuminant.dtype)
-    target, source = transform @ canonical_white, transform @ illuminant
+    target, source = matmul(transform, canonical_white), matmul(transform, illuminant)
     diagonal = target / jnp.where(jnp.abs(source) > 1e-12, source, 1e-12)
     matrix = jnp.linalg.solve(transform, diagonal[:, None] * transform)
     grey = illuminant / jnp.maximum(jnp.sum(illuminant), 1e-12)
-    return matrix / jnp.maximum(jnp.sum(matrix @ grey), 1e-12)
+    return matrix / jnp.maximum(jnp.sum(matmul(matrix, grey)), 1e-12)
 
 
 @jax.jit
@@ -47,7 +49,7 @@ def diagonal_gains(illuminant: Float[Array, "3"], canonical_white: Float[Array, 
 @jax.jit
 def apply_map(rgb: Float[Array, "... 3"], matrix: Float[Array, "3 3"]) -> Float[Array, "... 3"]:
     """Apply a 3x3 colour map to every pixel (``matrix @ pixel``)."""
-    return jnp.einsum("...c,kc->...k", rgb, matrix)
+    return einsum("...c,kc->...k", rgb, matrix)
 
 
 def correct(

@@ -20,6 +20,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax.calibration import _solvers
+from ccjax.precision import matmul
 from ccjax.spectra import N_WAVELENGTHS
 
 
@@ -80,7 +81,7 @@ def fit_channel(spectra, raw, mask, options: FitOptions, lower, upper, black, ex
     decay = jnp.exp(jnp.minimum(-exp_rate * (raw - black), 60.0))
     design = jnp.concatenate([spectra, jnp.ones((m, 1), dtype), decay[:, None]], axis=1)
     S = jnp.asarray(second_difference(n_wl), dtype)
-    roughness = jnp.zeros((n_wl + 2, n_wl + 2), dtype).at[:n_wl, :n_wl].set(S.T @ S)
+    roughness = jnp.zeros((n_wl + 2, n_wl + 2), dtype).at[:n_wl, :n_wl].set(matmul(S.T, S))
     row_sum = jnp.sum(spectra, axis=1)
 
     def linearised(x):
@@ -97,8 +98,8 @@ def fit_channel(spectra, raw, mask, options: FitOptions, lower, upper, black, ex
         )
         penalty = (options.smoothness / jnp.maximum(sensor_scale, tiny)) ** 2 * roughness
         weighted = design * weight[:, None]
-        Q = weighted.T @ weighted + penalty
-        c = weighted.T @ (weight * raw)
+        Q = matmul(weighted.T, weighted) + penalty
+        c = matmul(weighted.T, weight * raw)
         if solver == "box":
             sol = _solvers.solve_box_qp(Q, c, lower, upper, maxiter=options.maxiter)
         elif solver == "osqp":
@@ -112,8 +113,8 @@ def fit_channel(spectra, raw, mask, options: FitOptions, lower, upper, black, ex
         else:
             sol = _solvers.solve_least_squares(weighted[:, :n_wl], weight * raw)
             sol = sol._replace(x=jnp.concatenate([sol.x, jnp.zeros(2, dtype)]))
-        residual = weight * (design @ sol.x - raw)
-        objective = jnp.sum(residual**2) + sol.x @ (penalty @ sol.x)
+        residual = weight * (matmul(design, sol.x) - raw)
+        objective = jnp.sum(residual**2) + matmul(sol.x, matmul(penalty, sol.x))
         return sol, objective
 
     # Relative joint fits take two passes: rows weighted by r - b first, then by F(r) of pass one.

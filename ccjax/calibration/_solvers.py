@@ -27,6 +27,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from ccjax.precision import highest_within, matmul
+
 with warnings.catch_warnings():
     # jaxopt announces on import that it is no longer maintained; the project uses it on purpose
     # (the project's choice of QP library), so silence exactly that warning and nothing else.
@@ -60,9 +62,9 @@ def _jacobi(Q, c, lower, upper):
 def _kkt_residual(Qs, cs, y, lower, upper):
     """Projected-gradient residual ``max |y - clip(y - grad)|`` and the rounding level it is
     compared with (the size of the terms that make up the gradient)."""
-    grad = Qs @ y - cs
+    grad = matmul(Qs, y) - cs
     residual = jnp.max(jnp.abs(y - jnp.clip(y - grad, lower, upper)))
-    size = jnp.maximum(1.0, jnp.max(jnp.abs(cs)) + jnp.max(jnp.abs(Qs) @ jnp.abs(y)))
+    size = jnp.maximum(1.0, jnp.max(jnp.abs(cs)) + jnp.max(matmul(jnp.abs(Qs), jnp.abs(y))))
     return residual, size
 
 
@@ -96,7 +98,7 @@ def _polish(Qs, cs, y, lower, upper):
     offset = jnp.where(has_lower | fixed, jnp.where(jnp.isfinite(lower), lower, 0.0), jnp.where(has_upper, upper, 0.0))
     # x = offset + sign * z with z >= 0 on bounded unknowns, z free on free ones, z = 0 on fixed ones.
     Qz = Qs * sign[:, None] * sign[None, :]
-    cz = sign * (cs - Qs @ offset)
+    cz = sign * (cs - matmul(Qs, offset))
     z = jnp.where(fixed, 0.0, sign * (y - offset))
     z = jnp.where(bounded, jnp.maximum(z, 0.0), z)
     passive = ~fixed & (~bounded | (z > 0))
@@ -134,8 +136,8 @@ def _polish(Qs, cs, y, lower, upper):
 
     def outer_step(state):
         z, P, _, steps = state
-        gradient = cz - Qz @ z  # the negative gradient
-        size = jnp.maximum(1.0, jnp.max(jnp.abs(cz)) + jnp.max(jnp.abs(Qz) @ jnp.abs(z)))
+        gradient = cz - matmul(Qz, z)  # the negative gradient
+        size = jnp.maximum(1.0, jnp.max(jnp.abs(cz)) + jnp.max(matmul(jnp.abs(Qz), jnp.abs(z))))
         candidates = bounded & ~P
         j = jnp.argmax(jnp.where(candidates, gradient, -jnp.inf))
         done = ~jnp.any(candidates) | (gradient[j] <= _tolerance(dtype) * size)
@@ -190,7 +192,7 @@ def solve_box_qp(
     lipschitz = jnp.maximum(jnp.linalg.norm(Qs), jnp.finfo(Qs.dtype).tiny)
     Qn, cn = Qs / lipschitz, cs / lipschitz
     solver = jaxopt.ProjectedGradient(
-        fun=lambda y, Q, c: 0.5 * y @ (Q @ y) - c @ y,
+        fun=lambda y, Q, c: 0.5 * matmul(y, matmul(Q, y)) - matmul(c, y),
         projection=jaxopt.projection.projection_box,
         stepsize=1.0,
         maxiter=round_length,
@@ -246,12 +248,12 @@ def _polish_qp(Qs, cs, A, lower, upper, x, z, y):
     rhs = jnp.concatenate([cs, active * target])
     solution = jnp.linalg.solve(K, rhs)
     for _ in range(2):  # iterative refinement against the regularisation
-        residual = (
-            rhs - jnp.block([[Qs, A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active)]]) @ solution
+        residual = rhs - matmul(
+            jnp.block([[Qs, A.T * active[None, :]], [A * active[:, None], -jnp.diag(1.0 - active)]]), solution
         )
         solution = solution + jnp.linalg.solve(K, residual)
     xp, nu = solution[:n], solution[n:]
-    Ax = A @ xp
+    Ax = matmul(A, xp)
     scale = (
         1.0
         + jnp.max(jnp.abs(jnp.where(jnp.isfinite(lower), lower, 0.0)))
@@ -304,7 +306,8 @@ def solve_qp(
         implicit_diff=False,
         jit=True,
     )
-    result = solver.run(params_obj=(Qs, -cs), params_eq=A, params_ineq=(row_lower, row_upper))
+    with highest_within():  # BoxOSQP's LU path forms A^T A and its matvecs at the default precision
+        result = solver.run(params_obj=(Qs, -cs), params_eq=A, params_ineq=(row_lower, row_upper))
     x, z = result.params.primal
     polished, ok = _polish_qp(Qs, cs, A, row_lower, row_upper, x, z, result.params.dual_eq)
     y = jnp.where(ok, polished, x)

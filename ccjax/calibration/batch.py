@@ -22,6 +22,7 @@ from ccjax.calibration._plan import DEFAULT_SMOOTHNESS, check_data, plan_fit
 from ccjax.calibration.errors import FitErrors, fit_errors
 from ccjax.calibration.fitting import SensorFit, fit_sensors
 from ccjax.calibration.linearisation import apply_linearisation
+from ccjax.precision import matmul
 from ccjax.spectra import N_WAVELENGTHS
 
 
@@ -95,7 +96,7 @@ def _fit_many(spectra, raw, masks, options: FitOptions, smoothness, solver: str,
             fits.a1,
             rates,
             fits.solution.converged,
-            fit_errors(spectra @ sensors, fits.linear.T, mask),
+            fit_errors(matmul(spectra, sensors), fits.linear.T, mask),
         )
 
     return jax.vmap(one)(spectra, raw, masks, smoothness)
@@ -233,7 +234,7 @@ def evaluate_batch(fits: BatchFit, spectra, responses, mask=None, *, linearised:
     raw = jnp.broadcast_to(jnp.asarray(responses, dtype), (fits.sensors.shape[0],) + responses.shape)
     linear = fits.linearise(raw) if linearised else raw
     mask = jnp.ones(responses.shape[0], bool) if mask is None else jnp.asarray(mask, bool)
-    return jax.vmap(lambda s, lin: fit_errors(spectra @ s, lin, mask))(fits.sensors, linear)
+    return jax.vmap(lambda s, lin: fit_errors(matmul(spectra, s), lin, mask))(fits.sensors, linear)
 
 
 def random_subsets(n_rows: int, size: int, count: int, seed: int = 0, within=None) -> np.ndarray:
@@ -337,7 +338,7 @@ def fit_sensors_cv(
     raw = jnp.broadcast_to(jnp.asarray(responses, dtype), (lam.size,) + responses.shape)
     linear = fits.linearise(raw) if linearised else raw
     held = jnp.asarray(np.tile(held_out, (grid.size, 1)))
-    errors = jax.vmap(lambda s, lin, m: fit_errors(jnp.asarray(spectra, dtype) @ s, lin, m).rms_relative)(
+    errors = jax.vmap(lambda s, lin, m: fit_errors(matmul(jnp.asarray(spectra, dtype), s), lin, m).rms_relative)(
         fits.sensors, linear, held
     )
     errors = np.asarray(errors).reshape(grid.size, folds)

@@ -41,6 +41,7 @@ from ccjax.calibration._plan import (
 from ccjax.calibration.errors import FitErrors, fit_errors
 from ccjax.calibration.linearisation import Linearisation
 from ccjax.camera import Camera
+from ccjax.precision import matmul
 
 
 class FitStatus(eqx.Module):
@@ -95,7 +96,7 @@ class SensorFit(eqx.Module):
         """Table 3.1 errors of this model on other measurements (raw responses are linearised by F)."""
         spectra, raw = check_data(spectra, raw)
         linear = self.linearisation(raw) if self.linearisation is not None else jnp.asarray(raw)
-        return fit_errors(jnp.asarray(spectra) @ self.sensors.astype(jnp.asarray(spectra).dtype), linear, mask)
+        return fit_errors(matmul(jnp.asarray(spectra), self.sensors.astype(jnp.asarray(spectra).dtype)), linear, mask)
 
 
 def fit_sensors(
@@ -176,7 +177,7 @@ def _assemble(fits: ChannelFit, rates, data, plan: FitPlan, smoothness: float, n
     spectra, _, mask = data
     sensors = fits.sensor.T  # (101, 3)
     linear = fits.linear.T  # (M, 3)
-    predicted = spectra @ sensors
+    predicted = matmul(spectra, sensors)
     if plan.kind is None:
         lin = None
     else:

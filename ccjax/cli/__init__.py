@@ -14,8 +14,12 @@ import os
 import signal
 import sys
 import threading
+import time
 import warnings
 from typing import TYPE_CHECKING
+
+STARTED = time.perf_counter()
+"""When the command line was imported: the start of a command's timing breakdown."""
 
 # Nothing here imports more than the standard library at module level: the console script imports
 # this module before :func:`main` can catch Ctrl-C, so the command groups (and through them JAX) are
@@ -245,6 +249,7 @@ def main(argv: list[str] | None = None) -> int:
 __all__ = [
     "COMMANDS",
     "GROUPS",
+    "STARTED",
     "build_parser",
     "groups",
     "import_holding_interrupts",

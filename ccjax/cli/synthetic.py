@@ -98,35 +98,31 @@ def run_compare(args) -> int:
     import jax
 
     from ccjax import _cache, experiments
+    from ccjax.cli import STARTED as start
+    from ccjax.runs.compilation import CompileLog
 
-    start = time.perf_counter()
+    imported = time.perf_counter()
     check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
     check_plot(args.plot)
     writer = start_processes()
     # Compiled programs go to <cache>/xla, so a second run skips compilation (as its fits are read
     # from <cache>/fits by the sweep).
     _cache.enable_compilation_cache()
-    world = build_world(args)
-    methods = args.methods or experiments.runnable_methods(DEFAULT_COMPARE_METHODS, world)
-    result = experiments.sweep(
-        world,
-        methods,
-        args.surfaces,
-        args.scenes,
-        jax.random.key(args.seed),
-        specular=args.specular or None,
-        clip=None if args.clip is None else args.clip / 255.0,
-        progress=not args.no_progress,
-        # Each cell's per-scene errors are cached under a key of everything they depend on
-        # (ccjax's code included), so a repeated comparison reads what it has computed before.
-        cache=not args.recompute,
-        mesh=item_mesh_if_distributed(),
-    )
+    with CompileLog() as log:
+        world = build_world(args)
+        methods = args.methods or experiments.runnable_methods(DEFAULT_COMPARE_METHODS, world)
+        # Fitted ahead (the sweep then finds them in the store's memory) so that the fits' time is
+        # apart from the sweep's compiling and running.
+        counts: dict[str, int] = {}
+        experiments.resolve_methods(world, methods, counts)
+        fitted = time.perf_counter()
+        result = _sweep(args, world, methods)
+    swept = time.perf_counter()
     if not writer:  # under jax.distributed every process holds the pooled result; one reports it
         return 0
     n_cells = len(result.methods) * len(result.surfaces)
     print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes")
-    print(f"fits: {result.fits_from_cache} from cache, {result.fits_fitted} fitted ({_cache.cache_directory()})")
+    print(f"fits: {counts.get('cached', 0)} from cache, {counts.get('fitted', 0)} fitted ({_cache.cache_directory()})")
     print(
         f"results: {result.cells_from_cache} of {n_cells} (method, surfaces) cells from cache, "
         f"{n_cells - result.cells_from_cache} computed"
@@ -143,8 +139,38 @@ def run_compare(args) -> int:
         write_plot(args.plot, lambda file: experiments.plot(result, file, title=title), overwrite=args.overwrite)
     if args.json or args.csv:
         write_outputs(args, result.report(SUMMARIES))
-    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    fit_compile, sweep_compile = log.seconds() - log.seconds(fitted), log.seconds(fitted)
+    print(
+        f"done in {time.perf_counter() - start:.1f} s: import {imported - start:.1f} s, fit {fitted - imported:.1f} s "
+        f"(world and fits, {fit_compile:.1f} s of it compiling), compile {sweep_compile:.1f} s, "
+        f"run {max(swept - fitted - sweep_compile, 0.0):.1f} s, output {time.perf_counter() - swept:.1f} s; "
+        f"{log.programs} programs built: {log.compiled} compiled, {log.cache_hits} from the persistent "
+        f"compilation cache ({jax.default_backend()})",
+        file=sys.stderr,
+    )
     return 0
+
+
+def _sweep(args, world, methods):
+    """The comparison sweep of ``ccjax compare``."""
+    import jax
+
+    from ccjax import experiments
+
+    return experiments.sweep(
+        world,
+        methods,
+        args.surfaces,
+        args.scenes,
+        jax.random.key(args.seed),
+        specular=args.specular or None,
+        clip=None if args.clip is None else args.clip / 255.0,
+        progress=not args.no_progress,
+        # Each cell's per-scene errors are cached under a key of everything they depend on
+        # (ccjax's code included), so a repeated comparison reads what it has computed before.
+        cache=not args.recompute,
+        mesh=item_mesh_if_distributed(),
+    )
 
 
 def add_reproduce(sub) -> None:

@@ -20,6 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int, PRNGKeyArray
 
 from ccjax import metrics
+from ccjax.precision import matmul
 from ccjax.scenes import draw_scenes, sweep_keys
 from ccjax.sharpening import (
     THESIS_SCALE,
@@ -96,7 +97,7 @@ class Chapter5Data(eqx.Module):
 def _scene_error(data: Chapter5Data, light, transform, illuminant):
     """Mapping error (unit scale) and angle of an estimate ``illuminant`` in camera space, with the
     sharpened map ``d# = (w_c T) / (e T)`` (§5.4)."""
-    sharp_map = (data.canonical_white @ transform) / (illuminant @ transform)
+    sharp_map = matmul(data.canonical_white, transform) / matmul(illuminant, transform)
     error = mapping_error(data.database[light], data.canonical, transform, sharp_map)
     return error, metrics.angular_error(illuminant, data.whites[light])
 
@@ -127,9 +128,9 @@ def _run_comparison(kind: str, data: Chapter5Data, scenes: Chapter5Scenes, trans
             return best_linear_error(source, target), jnp.nan
         if kind == "BEST-DIAGONAL":
             sharp_map = best_diagonal_map(source, target, transform)
-            estimate = ((data.canonical_white @ transform) / sharp_map) @ jnp.linalg.inv(transform)
+            estimate = matmul(matmul(data.canonical_white, transform) / sharp_map, jnp.linalg.inv(transform))
         else:  # ACTUAL: the true white in sharpened space
-            sharp_map = (data.canonical_white @ transform) / (truth @ transform)
+            sharp_map = matmul(data.canonical_white, transform) / matmul(truth, transform)
             estimate = truth
         return mapping_error(source, target, transform, sharp_map), metrics.angular_error(estimate, truth)
 

@@ -17,6 +17,7 @@ from jaxtyping import Array, Float
 from ccjax.experiments.chapter5 import COMPARISONS, SHARPENINGS, chapter5_errors
 from ccjax.experiments.results import sampling_error
 from ccjax.experiments.sweeps import is_registered
+from ccjax.precision import matmul
 from ccjax.sharpening import (
     THESIS_SCALE,
     actual_error,
@@ -204,8 +205,10 @@ def summary(world: World, transform) -> dict:
         return float(jnp.sqrt(jnp.mean(values**2))) * THESIS_SCALE
 
     out = {
-        "negative_lobes": negative_lobes(world.camera.sensors @ t).tolist(),
-        "negative_training_responses": float(jnp.mean(database_responses(world, world.train_illuminants) @ t < 0)),
+        "negative_lobes": negative_lobes(matmul(world.camera.sensors, t)).tolist(),
+        "negative_training_responses": float(
+            jnp.mean(matmul(database_responses(world, world.train_illuminants), t) < 0)
+        ),
         "best_linear": rms(jax.jit(jax.vmap(best_linear_error, (0, None)))(sources, target)),
     }
     diagonal = jax.jit(jax.vmap(diagonal_error, (0, None, None)))

@@ -97,6 +97,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 from scipy.optimize import nnls
 
+from ccjax.precision import einsum
 from ccjax.spectra import WAVELENGTHS
 
 FLUORESCENT_PROBABILITY: float = 0.3
@@ -180,7 +181,7 @@ class FluorescentSurfaces(eqx.Module):
         """
         lights = jnp.asarray(illuminants, dtype=self.reflectance.dtype)
         reflected = self.reflectance * lights[..., None, :]
-        emitted = jnp.einsum("foi,...i->...fo", self.emission, lights)
+        emitted = einsum("foi,...i->...fo", self.emission, lights)
         return reflected + emitted
 
     def total_radiance_factor(self, illuminant: Float[ArrayLike, "101"]) -> Float[Array, "F 101"]:

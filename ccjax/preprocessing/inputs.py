@@ -14,6 +14,7 @@ from jaxtyping import Array, Bool, Float
 from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.estimators.tiles import map_row_tiles, tile_rows
 from ccjax.io.reading import LinearImage
+from ccjax.precision import matmul
 from ccjax.preprocessing.methods import Preprocessing, as_preprocessing, padded_size, surfaces
 from ccjax.preprocessing.rules import DEFAULT_DARK, DEFAULT_PERCENTILE, PIXELS, usable_pixels
 
@@ -219,7 +220,7 @@ def masked_mean(rgb: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[A
     def sums(image, usable, own):
         usable = usable & own[:, None] if own is not None else usable
         rows = jnp.where(usable[..., None], image, 0.0).reshape(image.shape[0], width * 3)
-        total = (jnp.ones((image.shape[0],), image.dtype) @ rows).reshape(width, 3).sum(axis=0)
+        total = matmul(jnp.ones((image.shape[0],), image.dtype), rows).reshape(width, 3).sum(axis=0)
         return total, jnp.sum(usable, dtype=jnp.int32)
 
     tile = tile_rows(height, width)

@@ -23,7 +23,7 @@ import numpy as np
 from jaxtyping import Array, Float
 from tqdm.auto import tqdm
 
-from ccjax import metrics
+from ccjax import backends, metrics
 from ccjax.estimators.base import AbstractEstimator, estimate_batch
 from ccjax.runs import hosts
 from ccjax.scenes import Scenes
@@ -35,10 +35,6 @@ signed R+G+B difference, scene mapping RMS (r,g) and RGB errors; RGB-valued ones
 RGB_VALUED = ("rgb", "brightness", "map_rgb")
 """Statistics on the RGB scale: they apply only to methods estimating the light's brightness (3-D
 methods), and are multiplied by the thesis' white = 255 when compared with its tables."""
-
-SURFACES_PER_CHUNK = 1 << 22
-"""Default chunk: about this many surface slots (scenes x padded size), which keeps a chunk's
-arrays near 100 MB; see :func:`chunking`."""
 
 
 def scene_errors(model: AbstractEstimator, scenes: Scenes, canonical_white: Float[Array, " 3"]) -> dict[str, jax.Array]:
@@ -150,15 +146,16 @@ def chunking(n_items: int, item_size: int, requested: int | None = None, n_devic
     Arguments:
         n_items: items in the stream.
         item_size: slots per item (a scene's padded number of surfaces).
-        requested: items per chunk (default: about :data:`SURFACES_PER_CHUNK` slots, between 64
-            and 16,384 items).
+        requested: items per chunk (default: about :func:`ccjax.backends.chunk_slots` slots,
+            between 64 and :func:`ccjax.backends.chunk_items` items: on CPU 4M slots, arrays
+            near 100 MB, and at most 16,384 items; on an accelerator by its memory).
         n_devices: the chunk is rounded up to a multiple of it (an equal share per device).
 
     Returns:
         ``(size, n_chunks)``: every chunk has ``size`` items (the last one is filled with items
         beyond the stream's end and trimmed).
     """
-    size = requested or max(64, min(16384, SURFACES_PER_CHUNK // max(item_size, 1)))
+    size = requested or max(64, min(backends.chunk_items(), backends.chunk_slots() // max(item_size, 1)))
     size = min(size, n_items)
     size = int(math.ceil(size / n_devices) * n_devices)
     return size, int(math.ceil(n_items / size))

@@ -12,6 +12,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ccjax.materials.metals import scene_metal_spectra
+from ccjax.precision import einsum, matmul
 from ccjax.scenes.options import Fluorescent, Metallic
 from ccjax.world import World
 
@@ -72,12 +73,12 @@ class SceneTables(eqx.Module):
         """
         sensors = world.camera.sensors
         lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
-        surface_rgb = jnp.einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
+        surface_rgb = einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
         metal_rgb = canonical_metal_rgb = fluorescent_rgb = canonical_fluorescent_rgb = None
         if metals is not None and metals is not False:
             spectra = _metal_table(metals, sensors.dtype)
-            metal_rgb = jnp.einsum("ml,jlc->jmc", spectra, lit_sensors)
-            canonical_metal_rgb = (spectra * world.canonical) @ sensors
+            metal_rgb = einsum("ml,jlc->jmc", spectra, lit_sensors)
+            canonical_metal_rgb = matmul(spectra * world.canonical, sensors)
         if fluorescent is not None:
             if not isinstance(fluorescent, RadianceModel):
                 raise ValueError(
@@ -90,7 +91,7 @@ class SceneTables(eqx.Module):
                 raise ValueError(f"fluorescent: radiance of {lights.shape} lights has shape {signals.shape}")
             if not bool(jnp.all(jnp.isfinite(signals))) or bool(jnp.any(signals < 0)):
                 raise ValueError("fluorescent: radiance contains negative or non-finite values")
-            responses = signals @ sensors
+            responses = matmul(signals, sensors)
             fluorescent_rgb, canonical_fluorescent_rgb = responses[:-1], responses[-1]
         return cls(
             surface_rgb=surface_rgb,

@@ -20,6 +20,7 @@ from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 from ccjax._adam import adam_init, adam_step
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.losses import angular_errors
+from ccjax.precision import matmul
 from ccjax.scenes import draw_scenes, sweep_keys
 from ccjax.sharpening.new_method import on_sphere
 from ccjax.sharpening.transforms import THESIS_SCALE, database_responses, mapping_error
@@ -86,7 +87,7 @@ def scene_losses(
         estimate = model(rgb, mask).illuminant
         if loss == "angular":
             return angular_errors(estimate, whites[light])  # safe gradients (ccjax.losses)
-        sharp_map = (canonical_white @ transform) / (estimate @ transform)
+        sharp_map = matmul(canonical_white, transform) / matmul(estimate, transform)
         return mapping_error(train[light], canonical, transform, sharp_map) * THESIS_SCALE
 
     return jax.vmap(one)(lights, surfaces)

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ccjax.precision import einsum, matmul
 from ccjax.sharpening.transforms import database_responses
 from ccjax.world import World
 
@@ -94,8 +95,8 @@ class DatabaseStatistics(eqx.Module):
     def of(cls, train: Float[Array, "I S 3"], canonical: Float[Array, "S 3"]) -> DatabaseStatistics:
         """The statistics of ``train`` (``(I, S, 3)``) and ``canonical`` (``(S, 3)``)."""
         return cls(
-            gram=jnp.einsum("isa,isb->iab", train, train),
-            cross=jnp.einsum("isa,sb->iab", train, canonical),
+            gram=einsum("isa,isb->iab", train, train),
+            cross=einsum("isa,sb->iab", train, canonical),
             train_mean=jnp.mean(train, axis=1),
             canonical_mean=jnp.mean(canonical, axis=0),
             canonical_square=jnp.sum(canonical**2),
@@ -104,17 +105,17 @@ class DatabaseStatistics(eqx.Module):
 
 def _terms(transform, stats: DatabaseStatistics, train, offset) -> ObjectiveTerms:
     inverse = jnp.linalg.inv(transform)
-    maps = (stats.canonical_mean @ transform) / (stats.train_mean @ transform)
-    generalised = jnp.einsum("ab,ib,bc->iac", transform, maps, inverse)
+    maps = matmul(stats.canonical_mean, transform) / matmul(stats.train_mean, transform)
+    generalised = einsum("ab,ib,bc->iac", transform, maps, inverse)
     residual = (
-        jnp.einsum("iab,iac,icb->i", generalised, stats.gram, generalised)
-        - 2.0 * jnp.einsum("iab,iab->i", generalised, stats.cross)
+        einsum("iab,iac,icb->i", generalised, stats.gram, generalised)
+        - 2.0 * einsum("iab,iab->i", generalised, stats.cross)
         + stats.canonical_square
     )
     # sqrt with a safe gradient at a perfect fit (possible only with delta sensors).
     positive = residual > 0
     mapping = jnp.sum(jnp.where(positive, jnp.sqrt(jnp.where(positive, residual, 1.0)), 0.0))
-    below = jnp.minimum(train @ transform - offset, 0.0)
+    below = jnp.minimum(matmul(train, transform) - offset, 0.0)
     positivity = jnp.sum(below**2)
     norm = (jnp.sum(transform**2) - 3.0) ** 2
     return ObjectiveTerms(mapping=mapping, positivity=positivity, norm=norm)
@@ -248,10 +249,10 @@ def new_sharpening(
         lp_array = jnp.asarray(lp, canonical.dtype)
         ln = None if lambda_n is None else jnp.asarray(lambda_n, canonical.dtype)
         t, steps, converged = _minimise(stats, train, lp_array, ln, max_steps, tolerance)
-        negative = float(jnp.mean(train @ t < 0))
+        negative = float(jnp.mean(matmul(train, t) < 0))
         # Calibration data must stay positive too: a negative sharpened canonical
         # response or training white would make gamut mapping revert on every scene.
-        calibration = int(jnp.sum(canonical @ t <= 0) + jnp.sum(whites @ t <= 0))
+        calibration = int(jnp.sum(matmul(canonical, t) <= 0) + jnp.sum(matmul(whites, t) <= 0))
         return t, int(steps), bool(converged), negative, calibration
 
     def passes(outcome):

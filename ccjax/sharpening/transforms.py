@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ccjax.precision import matmul
 from ccjax.world import World
 
 THESIS_SCALE = 255.0
@@ -44,8 +45,8 @@ def best_linear_map(source: Float[Array, "S 3"], target: Float[Array, "S 3"]) ->
     Returns:
         ``(3, 3)`` map ``M``.
     """
-    gram = source.T @ source
-    return jnp.linalg.solve(gram, source.T @ target)
+    gram = matmul(source.T, source)
+    return jnp.linalg.solve(gram, matmul(source.T, target))
 
 
 def mapping_error(
@@ -66,7 +67,7 @@ def mapping_error(
     Returns:
         The RMS error (a scalar).
     """
-    mapped = ((source @ transform) * diagonal) @ jnp.linalg.inv(transform)
+    mapped = matmul(matmul(source, transform) * diagonal, jnp.linalg.inv(transform))
     return jnp.sqrt(jnp.mean(jnp.sum((mapped - target) ** 2, axis=-1)))
 
 
@@ -80,7 +81,7 @@ def best_linear_error(source: Float[Array, "S 3"], target: Float[Array, "S 3"]) 
     Returns:
         The RMS error (a scalar).
     """
-    residual = source @ best_linear_map(source, target) - target
+    residual = matmul(source, best_linear_map(source, target)) - target
     return jnp.sqrt(jnp.mean(jnp.sum(residual**2, axis=-1)))
 
 
@@ -104,7 +105,7 @@ def best_diagonal_map(
     Returns:
         ``(3,)`` diagonal map in sharpened space.
     """
-    sharp = source @ transform
+    sharp = matmul(source, transform)
     inverse = jnp.linalg.inv(transform)
     # Row (s, j) of the design: sharp[s, k] * inverse[k, j] for each unknown d_k.
     design = (sharp[:, None, :] * inverse.T[None, :, :]).reshape(-1, 3)
@@ -147,14 +148,14 @@ def actual_error(
     Returns:
         The RMS error (a scalar).
     """
-    sharp_map = (canonical_white @ transform) / (truth @ transform)
+    sharp_map = matmul(canonical_white, transform) / matmul(truth, transform)
     return mapping_error(source, target, transform, sharp_map)
 
 
 @jax.jit
 def _sharpness_kernel(sensors, reflectances, target, spectra):
     def one(spectrum):
-        source = (reflectances * spectrum) @ sensors
+        source = matmul(reflectances * spectrum, sensors)
         return best_linear_error(source, target), diagonal_error(source, target, jnp.eye(3, dtype=target.dtype))
 
     return jax.lax.map(one, spectra)

@@ -21,6 +21,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import AbstractEstimator, AbstractSurfaceEstimator, Estimate, Padding
+from ccjax.precision import matmul
 from ccjax.world import World
 
 EstimatorFit = Callable[[World], AbstractEstimator]
@@ -43,7 +44,7 @@ def sharpened_world(world: World, transform: Float[Array, "3 3"]) -> World:
     Returns:
         The world with sharpened sensors.
     """
-    sensors = world.camera.sensors @ jnp.asarray(transform, world.camera.sensors.dtype)
+    sensors = matmul(world.camera.sensors, jnp.asarray(transform, world.camera.sensors.dtype))
     return eqx.tree_at(lambda w: w.camera.sensors, world, sensors)
 
 
@@ -109,10 +110,10 @@ class Sharpened(AbstractSurfaceEstimator):
             ``(estimate, reverted)``: the :class:`Estimate` in camera space (status and relaxation
             of the run that answered) and True where the scene reverted.
         """
-        sharp = rgb @ self.transform
+        sharp = matmul(rgb, self.transform)
         inner = self.inner(sharp, mask)
         plain = self.plain(rgb, mask)
-        estimate = inner.illuminant @ self.inverse
+        estimate = matmul(inner.illuminant, self.inverse)
         if self.requires_positive:
             inputs_ok = jnp.all(jnp.where(mask[:, None], sharp > 0, True))
             valid = self.calibration_ok & inputs_ok & inner.ok

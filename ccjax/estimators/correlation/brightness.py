@@ -29,6 +29,7 @@ from ccjax.estimators.correlation.fitting import (
 )
 from ccjax.estimators.correlation.matrices import BRIGHTNESS_SIGMA, brightness_matrix
 from ccjax.estimators.simple import average_illuminant
+from ccjax.precision import matmul
 from ccjax.world import World
 
 RG_CELLS = compact_rg_cells().astype(np.int32)
@@ -142,7 +143,7 @@ class ColourByCorrelation3D(AbstractWorldSurfaceEstimator):
             weight = (rg_weight[..., None] * lw[:, None, None, :]).reshape(-1)
             if self.method == "counts":
                 rows = self.log_probability.at[cell].get(mode="promise_in_bounds")
-                return weight @ rows
+                return matmul(weight, rows)
             score, occupied = soft_presence_score(self.log_probability, cell, weight, inside.reshape(-1))
             return score - occupied * jnp.log(ratio)
 
@@ -196,7 +197,7 @@ class ColourByCorrelation3D(AbstractWorldSurfaceEstimator):
             carry = (
                 new_peak,
                 norm * decay + total,
-                mean_rg * decay + weight @ self.illuminant_rg,
+                mean_rg * decay + matmul(weight, self.illuminant_rg),
                 mean_b * decay + total * ratio,
             )
             return carry, None

@@ -24,6 +24,7 @@ from ccjax.estimators.correlation.fitting import (
 )
 from ccjax.estimators.correlation.matrices import chromaticity_matrix, hull_matrix
 from ccjax.estimators.simple import average_illuminant
+from ccjax.precision import matmul
 from ccjax.world import World
 
 
@@ -67,14 +68,14 @@ class ColourByCorrelation(AbstractWorldSurfaceEstimator):
         log_posterior = self.log_posterior(rgb, mask)
         posterior = jnp.exp(log_posterior)
         if self.selector == "MMSE":
-            rg = posterior @ self.illuminant_rg
+            rg = matmul(posterior, self.illuminant_rg)
         elif self.softness is not None:  # soft MAP: softmax of the log-posterior at a temperature
-            rg = jax.nn.softmax(log_posterior / self.temperature) @ self.illuminant_rg
+            rg = matmul(jax.nn.softmax(log_posterior / self.temperature), self.illuminant_rg)
         elif self.selector == "MAP":
             rg = self.illuminant_rg[jnp.argmax(posterior)]
         else:  # MLM
             assert self.mlm_mask is not None, "fit_chromaticity sets the MLM mask"
-            rg = self.illuminant_rg[jnp.argmax(self.mlm_mask @ posterior)]
+            rg = self.illuminant_rg[jnp.argmax(matmul(self.mlm_mask, posterior))]
         return with_fallback(rg_to_rgb(rg), jnp.any(valid_pixels(rgb, mask)), self.fallback)
 
 
@@ -248,9 +249,9 @@ def tune_mlm_width(
     truth = jnp.asarray(rg_numpy(whites), jnp.float32)
     mean_error = []
     for width in widths:
-        choice = jnp.argmax(posterior @ mlm_mask(model.illuminant_rg, width).T, axis=1)
+        choice = jnp.argmax(matmul(posterior, mlm_mask(model.illuminant_rg, width).T), axis=1)
         mean_error.append(float(jnp.mean(jnp.linalg.norm(model.illuminant_rg[choice] - truth, axis=1))))
-    mmse = float(jnp.mean(jnp.linalg.norm(posterior @ model.illuminant_rg - truth, axis=1)))
+    mmse = float(jnp.mean(jnp.linalg.norm(matmul(posterior, model.illuminant_rg) - truth, axis=1)))
     return {
         "widths": np.asarray(widths, np.float64),
         "mean_error": np.asarray(mean_error),

@@ -28,6 +28,7 @@ from jaxtyping import Array, Bool, Complex, Float
 from ccjax.estimators.ffcc.model import FFCC
 from ccjax.estimators.ffcc.vonmises import fit_von_mises, gaussian_nll
 from ccjax.estimators.neural.log_chroma import log_chroma
+from ccjax.precision import matmul
 
 __all__ = [
     "Hyperparameters",
@@ -215,7 +216,7 @@ def loss(
         nll = gaussian_nll(target, mean, covariance) - jnp.log(2 * jnp.pi * diagonal)
         # Expected squared log-chroma error times 32 (the reference's isotropic error scale).
         expected = 32.0 * bin_size**2 * (jnp.sum((mean - target) ** 2) + jnp.trace(covariance))
-        return jnp.stack([crossent, nll, expected]) @ weights
+        return matmul(jnp.stack([crossent, nll, expected]), weights)
 
     per_image = jax.vmap(one)(histogram_fft, truth)
     data = jnp.mean(per_image) if counted is None else jnp.sum(counted * per_image) / jnp.sum(counted)

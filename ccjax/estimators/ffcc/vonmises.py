@@ -8,6 +8,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ccjax.precision import matmul
+
 __all__ = ["fit_von_mises", "gaussian_nll"]
 
 
@@ -31,7 +33,7 @@ def fit_von_mises(
     n = probability.shape[0]
     angles = 2 * jnp.pi * jnp.arange(n, dtype=probability.dtype) / n
     marginals = jnp.stack([jnp.sum(probability, axis=1), jnp.sum(probability, axis=0)])
-    sines, cosines = marginals @ jnp.sin(angles), marginals @ jnp.cos(angles)
+    sines, cosines = matmul(marginals, jnp.sin(angles)), matmul(marginals, jnp.cos(angles))
     mean = jnp.mod(jnp.arctan2(sines, cosines), 2 * jnp.pi) * (n / (2 * jnp.pi))
     # Offsets from the nearest bin to the mean, wrapped to (-n/2, n/2]; the rounding has no
     # gradient, as in the reference code's derivatives.
@@ -40,7 +42,7 @@ def fit_von_mises(
     offsets = jnp.mod(bins[None, :] - centre[:, None] + n / 2 - 1, n) + 1 - n / 2
     first = jnp.sum(marginals * offsets, axis=1)
     second = jnp.sum(marginals * offsets**2, axis=1) - first**2
-    cross = offsets[0] @ probability @ offsets[1] - first[0] * first[1]
+    cross = matmul(matmul(offsets[0], probability), offsets[1]) - first[0] * first[1]
     covariance = jnp.array([[second[0], cross], [cross, second[1]]]) + diagonal * jnp.eye(2, dtype=probability.dtype)
     return mean, covariance
 
@@ -61,4 +63,4 @@ def gaussian_nll(
     delta = truth - mean
     det = covariance[0, 0] * covariance[1, 1] - covariance[0, 1] * covariance[1, 0]
     inverse = jnp.array([[covariance[1, 1], -covariance[0, 1]], [-covariance[1, 0], covariance[0, 0]]]) / det
-    return 0.5 * delta @ inverse @ delta + 0.5 * jnp.log((2 * jnp.pi) ** 2 * det)
+    return 0.5 * matmul(matmul(delta, inverse), delta) + 0.5 * jnp.log((2 * jnp.pi) ** 2 * det)

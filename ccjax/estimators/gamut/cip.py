@@ -237,6 +237,7 @@ def fit(
         clip_to_domain=True,
         fine_points=fine,
         refine_steps=48,
+        refine_scales=(1.0,),
     )
     as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)
     return CIP(

@@ -19,6 +19,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_numpy
+from ccjax.backends import block_scenes
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
 from ccjax.estimators.gamut import extensions, geometry
 from ccjax.estimators.gamut.constraints_3d import COUNTED_SLOTS, evaluate
@@ -188,10 +189,9 @@ class GamutMapping(AbstractGamutMapEstimator):
     power: float = eqx.field(static=True, default=12.0)
 
     def block_size(self, backend: str) -> int | None:
-        """128 scenes: measured against 16, 32 and 64 on CPU (interleaved runs, median of 9) with
-        the certified fine stage, 1.1-1.25x faster at 8 and 64 surfaces and equal at 1,024 (the
-        per-block loops' fixed cost is shared by more scenes)."""
-        return 128
+        """The backend's block (:func:`ccjax.backends.block_scenes`: cache-sized on CPU, as large
+        as the device's memory allows on an accelerator)."""
+        return block_scenes(backend)
 
     def __check_init__(self):
         if self.selector not in SELECTORS:

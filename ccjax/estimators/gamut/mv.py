@@ -13,6 +13,7 @@ from jaxtyping import Array, Bool, Float, Int
 from ccjax.estimators.gamut.constraints_3d import Grid, Observations, inverse_extent, violations
 from ccjax.estimators.gamut.engine import CERTIFICATE_SLACK, EDGE, directions, leading, max_of_forms, pattern_search
 from ccjax.estimators.gamut.weights import log_volume, normalised
+from ccjax.precision import matmul
 
 # The pattern search evaluates its candidates in a box of this many fine-grid steps around its
 # start with only the top-facet forms that can be the largest there (:func:`box_forms`), and
@@ -50,7 +51,7 @@ def hard(model, grid: Grid, mask_violation, level, feasible: Bool[Array, " G"], 
         value = log_volume(-jnp.log(jnp.where(inside, inverse, 1.0)), u)
         return jnp.where(inside, value, -jnp.inf)
 
-    centre = pattern_search(objective, start, grid.step / 2, model.options.refine_steps)
+    centre = pattern_search(objective, start, grid.step / 2, model.options.refine_steps, model.options.refine_scales)
     u, v, _ = directions(centre[None])
     return u[0] * inverse_extent(v, grid.observations, grid.count)[0]
 
@@ -82,9 +83,9 @@ def box_forms(
     reach = centre + half
     top = obs.top
     live = (jnp.arange(n_obs, dtype=jnp.int32) < (n_obs if count is None else count))[:, None]
-    at_centre = top @ centre  # (P, K1)
-    spread = jnp.abs(top) @ half
-    size = jnp.abs(top) @ reach
+    at_centre = matmul(top, centre)  # (P, K1)
+    spread = matmul(jnp.abs(top), half)
+    size = matmul(jnp.abs(top), reach)
     # Against the largest lower bound over the box.
     lower = jnp.where(live, at_centre - spread, -jnp.inf)
     best = jnp.unravel_index(jnp.argmax(lower), lower.shape)
@@ -95,7 +96,7 @@ def box_forms(
     star_form = jnp.take_along_axis(top, star[:, None, None], axis=1)  # (P, 1, 3)
     gap = top - star_form
     star_size = jnp.take_along_axis(size, star[:, None], axis=1)
-    above_own = gap @ centre + jnp.abs(gap) @ half > -CERTIFICATE_SLACK * (size + star_size)
+    above_own = matmul(gap, centre) + matmul(jnp.abs(gap), half) > -CERTIFICATE_SLACK * (size + star_size)
     return leading((live & above_floor & above_own).reshape(n_obs * k1))
 
 

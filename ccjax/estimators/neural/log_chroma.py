@@ -22,6 +22,7 @@ from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from ccjax._colour import TINY
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
+from ccjax.precision import linear
 
 LOG_CHROMA_BINS = 32
 LOG_CHROMA_EXTENT = 2.0
@@ -81,8 +82,8 @@ class ReluMLP(eqx.Module):
 
     def __call__(self, x: Float[Array, " n"]) -> Float[Array, " m"]:
         for layer in self.layers[:-1]:
-            x = jax.nn.relu(layer(x))
-        return self.layers[-1](x)
+            x = jax.nn.relu(linear(layer, x))
+        return linear(self.layers[-1], x)
 
 
 @typing.final

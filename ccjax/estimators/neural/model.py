@@ -13,6 +13,7 @@ from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from ccjax._colour import rg, rg_bin, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, Status
+from ccjax.precision import linear, matmul
 
 BINS = 50
 """(r,g) bins per axis; cells are ``1 / BINS = 0.02`` wide (§4.5.5)."""
@@ -92,17 +93,17 @@ class Mlp(eqx.Module):
 
     def __call__(self, x: Float[Array, " n_in"]) -> Float[Array, " n_out"]:
         """The net on a dense input vector (e.g. :func:`binarised_histogram`)."""
-        return self._hidden_to_output(self.layers[0](x))
+        return self._hidden_to_output(linear(self.layers[0], x))
 
     def from_bins(self, bins: jax.Array, weight: Float[Array, " P"]) -> Float[Array, " n_out"]:
         """The net on a sparse 0/1 input given by :func:`occupied_bins` (same value as ``__call__``)."""
         first = self.layers[0]
-        hidden = first.weight[:, bins] @ weight.astype(first.weight.dtype)
+        hidden = matmul(first.weight[:, bins], weight.astype(first.weight.dtype))
         return self._hidden_to_output(hidden if first.bias is None else hidden + first.bias)
 
     def _hidden_to_output(self, x):
         for layer in self.layers[1:]:
-            x = layer(jax.nn.sigmoid(x))
+            x = linear(layer, jax.nn.sigmoid(x))
         return x
 
 
