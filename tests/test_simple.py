@@ -220,8 +220,8 @@ def test_estimate_validates_input():
 
 
 def test_estimate_batches(default_world):
-    rgb = np.random.default_rng(1).uniform(size=(4, 8, 3))
-    batch = ccjax.estimate("GW", rgb, world=default_world)
+    rgb = np.random.default_rng(1).uniform(size=(4, 8, 3)).astype(np.float32)
+    batch = ccjax.estimate_batch(ccjax.fit("GW", default_world), jnp.asarray(rgb), jnp.ones(rgb.shape[:2], bool))
     one = ccjax.estimate("GW", rgb[2], world=default_world)
     assert batch.illuminant.shape == (4, 3)
     np.testing.assert_allclose(batch.illuminant[2], one.illuminant, rtol=1e-6)
