@@ -52,6 +52,12 @@ def add_evaluate(sub) -> None:
         help="with --train: training epochs at most (default: ccjax.training.Schedule's, with early stopping)",
     )
     p.add_argument(
+        "--allow-missing",
+        action="store_true",
+        help="score the images the ground truth lists when other images of DIR have no row (they are named); "
+        "without it such images are an error (exit 2)",
+    )
+    p.add_argument(
         "--json",
         default=None,
         help="write summaries and per-image results as JSON ('-' for stdout)",
@@ -127,6 +133,7 @@ def run_evaluate(args) -> int:
             read_options=image_options.read_options(args),
             masks=args.mask,
             check_camera=args.camera is not None or args.world != "default",
+            allow_missing=args.allow_missing,
             progress=not args.no_progress,
             log=lambda line: print(line, file=sys.stderr),
         )
@@ -135,6 +142,8 @@ def run_evaluate(args) -> int:
     if not writer:  # under jax.distributed every process holds the pooled results; one reports them
         return 0
     print(header(evaluation, args))
+    if evaluation.unlisted:
+        print(f"not scored, no ground-truth row ({len(evaluation.unlisted)}): {', '.join(evaluation.unlisted)}")
     if evaluation.check is not None:
         print(evaluation.check.message())
     print(evaluation.tables(), flush=True)

@@ -7,7 +7,14 @@ import argparse
 
 from ccjax.cli.common import check_camera_name, check_camera_option
 
-OPTION_NAMES = {"folds": "--folds", "train": "--train", "epochs": "--epochs", "masks": "--mask"}
+OPTION_NAMES = {
+    "folds": "--folds",
+    "train": "--train",
+    "epochs": "--epochs",
+    "masks": "--mask",
+    "ground_truth": "--ground-truth",
+    "allow_missing": "--allow-missing",
+}
 """The command-line option of each library argument that errors name (see :func:`as_option_error`)."""
 
 

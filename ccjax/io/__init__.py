@@ -14,6 +14,7 @@ from ccjax.io.ground_truth import (
     match_ground_truth,
     read_ground_truth,
     read_ground_truth_file,
+    unlisted_images,
     write_ground_truth,
 )
 from ccjax.io.png import PngHeader, png_header, read_png, write_png
@@ -53,6 +54,7 @@ __all__ = [
     "read_mask",
     "read_png",
     "srgb_preview",
+    "unlisted_images",
     "write_dataset",
     "write_figure",
     "write_file",
