@@ -150,6 +150,21 @@ def test_preview_renders_the_canonical_white_grey():
     assert preview.dtype == np.uint8 and np.all(preview == preview[0, 0, 0])
 
 
+def test_preview_encodes_with_the_iec_61966_2_1_curve():
+    """Oracle: the sRGB transfer curve of IEC 61966-2-1 written out (linear toe below 0.0031308);
+    the identity matrix and a 100th-percentile exposure leave the values as given."""
+    linear = np.linspace(0.0, 1.0, 301, dtype=np.float32).reshape(1, 301, 1) * np.ones((1, 1, 3), np.float32)
+    want = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear.astype(np.float64), 1 / 2.4) - 0.055)
+    got = io.srgb_preview(linear, None, percentile=100.0)
+    assert np.max(np.abs(got.astype(int) - np.round(want * 255).astype(int))) == 0
+    # The XYZ -> sRGB matrix colour-science derives from the primaries and D65 is IEC 61966-2-1's
+    # published one (the constants the previews used) to its 4 decimals.
+    import colour
+
+    iec = [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
+    np.testing.assert_allclose(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, iec, atol=5e-4)
+
+
 def test_preview_matrix_is_cached_as_arrays(tmp_path, monkeypatch):
     from ccjax.io import preview
 

@@ -15,10 +15,7 @@ from numpy.typing import ArrayLike
 from ccjax._cache import cached_arrays, content_key
 from ccjax.io.png import write_png
 
-_XYZ_TO_SRGB = np.array(
-    [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
-)
-PREVIEW_METHOD = "lstsq-reflectances-d65-v1"
+PREVIEW_METHOD = "lstsq-reflectances-d65-v2"
 """Names the fit of :func:`preview_matrix` in its cache key: change it when the fit changes."""
 
 
@@ -47,7 +44,7 @@ def preview_matrix(world) -> np.ndarray:
     white_xyz = d65 @ xyz_curves
     camera, xyz = camera / white_camera.max(), xyz / white_xyz[1]
     matrix = np.linalg.lstsq(camera, xyz, rcond=None)[0].T  # xyz ~ matrix @ camera
-    srgb = _XYZ_TO_SRGB @ matrix
+    srgb = np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, np.float64) @ matrix
     # Scale rows so the canonical white lands exactly on (1, 1, 1) * its brightest channel.
     white = srgb @ (white_camera / white_camera.max())
     if not np.all(white > 0):
@@ -77,12 +74,14 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
         percentile: exposure: this percentile of the brightest channel becomes 1.
 
     Returns:
-        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve).
+        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve, colour-science's).
     """
+    import colour
+
     linear = np.asarray(rgb, np.float32) @ (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
     scale = np.percentile(linear.max(axis=-1), percentile)
     linear = np.clip(linear / max(float(scale), 1e-12), 0.0, 1.0)
-    encoded = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+    encoded = colour.cctf_encoding(linear, function="sRGB")
     return np.round(encoded * 255).astype(np.uint8)
 
 
