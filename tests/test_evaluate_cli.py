@@ -145,6 +145,8 @@ def test_images_without_a_ground_truth_row_are_named_and_refused_unless_allowed(
     out = capsys.readouterr().out
     assert f"not scored, no ground-truth row (2): {', '.join(unlisted)}" in out
     assert "over 2 images" in out
+    # No --camera: the header names no camera (only methods that use none ran).
+    assert out.splitlines()[0].startswith("camera: none given") and "Canon" not in out.splitlines()[0]
     assert json.loads(json_path.read_text())["unlisted"] == unlisted
     with pytest.raises(ValueError, match=r"ground_truth: 2 image\(s\) .*allow_missing=True"):
         evaluate_folder(setup / "set", setup / "two.csv", ["GW"])

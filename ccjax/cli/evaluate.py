@@ -103,7 +103,11 @@ def header(evaluation, args) -> str:
     else:
         folds = ""
     preparation = args.preprocessing or "each method's default"
-    return f"world: {evaluation.world}; preprocessing: {preparation}{folds}"
+    # Without --camera (or --world) only methods that use no camera run (require_camera): naming
+    # the default world's camera would claim a camera the images were never matched to.
+    given = args.camera is not None or args.world != "default"
+    world = f"world: {evaluation.world}" if given else "camera: none given (these methods use none)"
+    return f"{world}; preprocessing: {preparation}{folds}"
 
 
 def run_evaluate(args) -> int:
