@@ -34,3 +34,48 @@ def test_gains_are_the_diagonal_of_the_map():
     np.testing.assert_allclose(
         np.asarray(correction.apply_map(jnp.ones((2, 3)), jnp.diag(jnp.array([1.0, 2.0, 3.0])))), [[1, 2, 3]] * 2
     )
+
+
+def test_clipped_pixels_come_out_as_the_canonical_white():
+    """Clip to white: a pixel with a channel at saturation becomes the canonical white at full
+    scale; the others get the gains (NumPy oracle: rgb * gains)."""
+    light, canonical = np.array([0.9, 0.6, 0.3], np.float32), np.array([0.5, 1.0, 0.7], np.float32)
+    rng = np.random.default_rng(1)
+    rgb = rng.uniform(0.05, 0.9, (6, 7, 3)).astype(np.float32)
+    rgb[0, 0] = 1.0  # every channel clipped
+    rgb[1, 1, 0] = 1.0  # one channel clipped
+    gains = np.asarray(correction.diagonal_gains(jnp.asarray(light), jnp.asarray(canonical)))
+    for sharpening in (None, np.eye(3, dtype=np.float32)):
+        got = np.asarray(correction.correct(rgb, light, canonical, sharpening, 1.0))
+        np.testing.assert_allclose(got[0, 0], canonical / canonical.max(), rtol=1e-6)
+        np.testing.assert_allclose(got[1, 1], canonical / canonical.max(), rtol=1e-6)
+        others = np.ones(rgb.shape[:2], bool)
+        others[0, 0] = others[1, 1] = False
+        np.testing.assert_allclose(got[others], rgb[others] * gains, rtol=1e-5)
+    # Without the rule a clipped white takes the gains' colour (what the rule prevents).
+    plain = np.asarray(correction.correct(rgb, light, canonical))[0, 0]
+    assert np.ptp(plain / canonical) > 0.5
+
+
+def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_commands):
+    """A saturated (65535, 65535, 65535) blob in a 16-bit PNG under a coloured light: the corrected
+    file shows it as the canonical white at full scale, the sRGB preview as neutral white."""
+    from ccjax import cli, io
+    from ccjax.runs import store
+
+    folder = small_world_commands
+    rng = np.random.default_rng(2)
+    rgb = rng.uniform(0.05, 0.6, (32, 40, 3)) * np.array([1.0, 0.7, 0.4])
+    rgb[8:16, 10:20] = 1.0
+    io.write_png(folder / "in.png", io.quantise(rgb))
+    status = cli.main(["correct", str(folder / "in.png"), str(folder / "out.png"), "--method", "GW", "--no-progress"])
+    assert status == 0
+    out, preview = io.read_png(folder / "out.png"), io.read_png(folder / "out_preview.png")
+    canonical = np.asarray(store.world().canonical_white, np.float64)
+    want = np.round(canonical / canonical.max() * 65535)
+    assert np.all(np.abs(out[8:16, 10:20].astype(np.float64) - want) <= 1), (out[8, 10], want)
+    blob = preview[8:16, 10:20].astype(int)
+    # Neutral, and among the brightest of the preview (its exposure is set by the 99th percentile).
+    assert np.all(blob.max(axis=-1) - blob.min(axis=-1) <= 1) and blob.min() >= np.percentile(preview, 90), preview[
+        8, 10
+    ]

@@ -186,7 +186,8 @@ def correct_folder(
 
     def write(index: int, image: LinearImage, estimates: dict[str, Estimate]) -> None:
         estimate = estimates[label]
-        corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening))
+        # Clipped pixels come out white (1.0 is the sensor's saturation on the unit scale).
+        corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening, 1.0))
         io.write_linear(written[index], corrected)
         io.write_preview(shown[index], corrected, matrix)
         if each is not None:
