@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -57,7 +59,7 @@ def test_clipped_pixels_come_out_as_the_canonical_white():
     assert np.ptp(plain / canonical) > 0.5
 
 
-def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_commands):
+def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_commands, capsys):
     """A saturated (65535, 65535, 65535) blob in a 16-bit PNG under a coloured light: the corrected
     file shows it as the canonical white at full scale, the sRGB preview as neutral white."""
     from ccjax import cli, io
@@ -70,6 +72,9 @@ def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_comm
     io.write_png(folder / "in.png", io.quantise(rgb))
     status = cli.main(["correct", str(folder / "in.png"), str(folder / "out.png"), "--method", "GW", "--no-progress"])
     assert status == 0
+    # The estimate is printed with five decimals, not float32 noise (0.030889999121427536).
+    printed = capsys.readouterr().out
+    assert re.search(r": illuminant \[\d\.\d{5}, \d\.\d{5}, \d\.\d{5}\] \(ok: True\) -> ", printed), printed
     out, preview = io.read_png(folder / "out.png"), io.read_png(folder / "out_preview.png")
     canonical = np.asarray(store.world().canonical_white, np.float64)
     want = np.round(canonical / canonical.max() * 65535)

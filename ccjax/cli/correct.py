@@ -134,9 +134,13 @@ def run_correct(args) -> int:
     source = image_options.image_source(paths, args)
 
     def report(index, estimate, output, preview) -> None:
-        illuminant = np.asarray(estimate.illuminant)
+        from tqdm.auto import tqdm
+
+        # Five decimals as `ccjax estimate` prints them (float32 has no more to give), written
+        # above the progress bar rather than into it.
+        rgb = ", ".join(f"{v:.5f}" for v in np.asarray(estimate.illuminant, np.float64))
         line = f"(ok: {bool(estimate.ok)}) -> {output}, {preview}"
-        print(f"{source.paths[index]}: illuminant {np.round(illuminant, 5).tolist()} {line}")
+        tqdm.write(f"{source.paths[index]}: illuminant [{rgb}] {line}")
 
     run = runs.correct_folder(
         source,
