@@ -141,7 +141,9 @@ def test_images_without_a_ground_truth_row_are_named_and_refused_unless_allowed(
     err = capsys.readouterr().err
     assert "--ground-truth: 2 image(s)" in err and all(path in err for path in unlisted), err
     json_path = setup / "r.json"
-    assert cli.main([*argv, "--no-progress", "--allow-missing", "--json", str(json_path)]) == 0
+    plot = setup / "errors.png"
+    assert cli.main([*argv, "--no-progress", "--allow-missing", "--json", str(json_path), "--plot", str(plot)]) == 0
+    assert io.png_header(plot).width > 600  # the per-image errors' figure
     out = capsys.readouterr().out
     assert f"not scored, no ground-truth row (2): {', '.join(unlisted)}" in out
     assert "over 2 images" in out

@@ -58,6 +58,11 @@ def add_evaluate(sub) -> None:
         "without it such images are an error (exit 2)",
     )
     p.add_argument(
+        "--plot",
+        default=None,
+        help="write a figure of the per-image angular errors (their cumulative distribution and each image's)",
+    )
+    p.add_argument(
         "--json",
         default=None,
         help="write summaries and per-image results as JSON ('-' for stdout)",
@@ -118,7 +123,7 @@ def run_evaluate(args) -> int:
     writer = start_processes()
     check_folds(args)
     image_options.check_labels(args.methods + (args.train or []), args)
-    for option, path in (("--json", args.json), ("--csv", args.csv)):
+    for option, path in (("--json", args.json), ("--csv", args.csv), ("--plot", args.plot)):
         if path:
             check_output_file(path, option)
     image_options.require_camera(args.methods + (args.train or []), args)
@@ -155,6 +160,10 @@ def run_evaluate(args) -> int:
         write(args.json, json.dumps(evaluation.report(), indent=1))
     if args.csv:
         write(args.csv, evaluation.csv())
+    if args.plot:
+        from ccjax.experiments.plots import plot_image_errors
+
+        plot_image_errors(evaluation.results, args.plot)
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     raise_failures(evaluation.failures, evaluation.total)
     return 0
