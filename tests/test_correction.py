@@ -84,3 +84,33 @@ def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_comm
     assert np.all(blob.max(axis=-1) - blob.min(axis=-1) <= 1) and blob.min() >= np.percentile(preview, 90), preview[
         8, 10
     ]
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_correct_srgb_writes_full_resolution_srgb(small_world_commands, bits):
+    """``--srgb 8|16``: the corrected image through the world's camera-to-sRGB matrix and the
+    IEC 61966-2-1 curve (written out here), no exposure change; the clipped blob is sRGB white."""
+    from ccjax import cli, correction, io
+    from ccjax.runs import store
+
+    folder = small_world_commands
+    rng = np.random.default_rng(3)
+    rgb = rng.uniform(0.05, 0.6, (24, 30, 3)) * np.array([1.0, 0.7, 0.4])
+    rgb[4:8, 4:9] = 1.0
+    io.write_png(folder / "in.png", io.quantise(rgb))
+    argv = ["correct", str(folder / "in.png"), str(folder / "out.tif"), "--method", "GW", "--srgb", str(bits)]
+    assert cli.main([*argv, "--no-progress"]) == 0
+    import tifffile
+
+    got = tifffile.imread(folder / "out.tif")
+    assert got.dtype == (np.uint8 if bits == 8 else np.uint16) and got.shape == rgb.shape
+    world = store.world()
+    read = io.read_png(folder / "in.png").astype(np.float64) / 65535
+    estimate = np.asarray(io.read_png(folder / "in.png"), np.float64)[~np.any(read >= 0.98, -1)]
+    estimate = 2 * (estimate[np.all(estimate > 0, -1)] / 65535).mean(axis=0)  # grey world
+    corrected = np.asarray(correction.correct(read.astype(np.float32), estimate, world.canonical_white, None, 1.0))
+    linear = np.clip(corrected @ np.asarray(io.preview_matrix(world), np.float64).T, 0, 1)
+    encoded = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+    want = np.round(encoded * (2**bits - 1))
+    assert np.max(np.abs(got.astype(np.float64) - want)) <= 1 + (2**bits - 1) * 2e-4
+    assert np.all(got[4:8, 4:9] == 2**bits - 1)  # the clipped blob: sRGB white

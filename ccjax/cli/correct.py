@@ -13,7 +13,8 @@ def add_correct(sub) -> None:
         "correct",
         help="correct linear images to the canonical light",
         description="Estimate each image's light, map it to the canonical light with a diagonal map and write the "
-        "corrected linear 16-bit image and an 8-bit sRGB preview. IN and OUT are files, or folders (OUT "
+        "corrected linear 16-bit image (or sRGB, --srgb 8|16) and an 8-bit sRGB preview; pixels with a clipped "
+        "channel come out white. IN and OUT are files, or folders (OUT "
         "is created). Inputs are never replaced; existing outputs need --overwrite; every file is written "
         "to a temporary name and renamed into place.",
     )
@@ -30,6 +31,14 @@ def add_correct(sub) -> None:
         default=None,
         help="3x3 sharpening transform T (text or .npy; rows = sharpened sensors) for a sharpened-diagonal map T^-1 "
         "diag(T w_C / T e) T",
+    )
+    p.add_argument(
+        "--srgb",
+        type=int,
+        choices=(8, 16),
+        default=None,
+        help="write OUTPUT as sRGB with 8 or 16 bits instead of linear camera RGB: full resolution, the "
+        "camera-to-sRGB matrix of the world and the sRGB curve (colour-science), no exposure change",
     )
     p.add_argument(
         "--overwrite",
@@ -153,6 +162,7 @@ def run_correct(args) -> int:
         dark=image_options.dark_fraction(args),
         progress=not args.no_progress,
         each=report,
+        srgb=args.srgb,
     )
     raise_failures(list(run.failures.values()), len(paths))
     return 0

@@ -18,7 +18,7 @@ from ccjax.io.ground_truth import (
     write_ground_truth,
 )
 from ccjax.io.png import PngHeader, png_header, read_png, write_png
-from ccjax.io.preview import preview_matrix, preview_matrix_cached, srgb_preview, write_preview
+from ccjax.io.preview import encode_srgb, preview_matrix, preview_matrix_cached, srgb_preview, write_preview
 from ccjax.io.reading import (
     CLIP_FRACTION,
     IMAGE_SUFFIXES,
@@ -30,7 +30,7 @@ from ccjax.io.reading import (
     read_image,
     read_mask,
 )
-from ccjax.io.writing import quantise, write_dataset, write_linear
+from ccjax.io.writing import quantise, write_codes, write_dataset, write_linear
 
 __all__ = [
     "CLIP_FRACTION",
@@ -40,6 +40,7 @@ __all__ = [
     "ImageInfo",
     "LinearImage",
     "PngHeader",
+    "encode_srgb",
     "list_images",
     "match_ground_truth",
     "path_key",
@@ -55,6 +56,7 @@ __all__ = [
     "read_png",
     "srgb_preview",
     "unlisted_images",
+    "write_codes",
     "write_dataset",
     "write_figure",
     "write_file",

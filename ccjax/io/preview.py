@@ -65,6 +65,25 @@ def preview_matrix_cached(world) -> np.ndarray:
     return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, {"world": world.name})["matrix"]
 
 
+def encode_srgb(linear: ArrayLike, bits: int = 8) -> np.ndarray:
+    """Linear sRGB as sRGB file codes: clipped to [0, 1], the IEC 61966-2-1 transfer curve
+    (colour-science's), ``bits`` per sample.
+
+    Arguments:
+        linear: ``(..., 3)`` linear sRGB (1 = full scale).
+        bits: 8 (``uint8``) or 16 (``uint16``).
+
+    Returns:
+        The codes.
+    """
+    import colour
+
+    if bits not in (8, 16):
+        raise ValueError(f"bits: expected 8 or 16, got {bits!r}")
+    encoded = colour.cctf_encoding(np.clip(np.asarray(linear, np.float32), 0.0, 1.0), function="sRGB")
+    return np.round(encoded * (2**bits - 1)).astype(np.uint8 if bits == 8 else np.uint16)
+
+
 def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: float = 99.0) -> np.ndarray:
     """8-bit sRGB rendering of a linear camera image.
 
@@ -74,15 +93,11 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
         percentile: exposure: this percentile of the brightest channel becomes 1.
 
     Returns:
-        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve, colour-science's).
+        ``(H, W, 3)`` ``uint8`` sRGB (:func:`encode_srgb`).
     """
-    import colour
-
     linear = np.asarray(rgb, np.float32) @ (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
     scale = np.percentile(linear.max(axis=-1), percentile)
-    linear = np.clip(linear / max(float(scale), 1e-12), 0.0, 1.0)
-    encoded = colour.cctf_encoding(linear, function="sRGB")
-    return np.round(encoded * 255).astype(np.uint8)
+    return encode_srgb(linear / max(float(scale), 1e-12), 8)
 
 
 def write_preview(path: str | os.PathLike, rgb: ArrayLike, matrix: np.ndarray | None = None) -> None:

@@ -42,10 +42,26 @@ def write_linear(path: str | os.PathLike, rgb: ArrayLike) -> None:
     Raises:
         ValueError: the suffix is not ``.png``, ``.tif`` or ``.tiff``.
     """
+    write_codes(path, quantise(rgb))
+
+
+def write_codes(path: str | os.PathLike, codes: np.ndarray) -> None:
+    """Write file codes ``(H, W, 3)`` (``uint8`` or ``uint16``) as a PNG or TIFF (by suffix),
+    atomically (:func:`write_file`).
+
+    Arguments:
+        path: ``.png``, ``.tif`` or ``.tiff`` file.
+        codes: ``(H, W, 3)`` ``uint8`` or ``uint16``.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: the suffix is not ``.png``, ``.tif`` or ``.tiff``.
+    """
     path = Path(path)
     if path.suffix.lower() not in (".png", ".tif", ".tiff"):
         raise ValueError(f"output: {path} must end in .png, .tif or .tiff")
-    codes = quantise(rgb)
     if path.suffix.lower() == ".png":
         write_png(path, codes)
     else:

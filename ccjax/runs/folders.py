@@ -138,9 +138,11 @@ def correct_folder(
     masks: str | os.PathLike | Sequence[str | os.PathLike | None] | None = None,
     progress: bool = False,
     each: Callable[[int, Estimate, Path, Path], None] | None = None,
+    srgb: int | None = None,
 ) -> ImageRun:
     """Estimate each image's light and write it corrected to the canonical light (a diagonal map,
-    or a sharpened-diagonal one) as a linear 16-bit image and an 8-bit sRGB preview.
+    or a sharpened-diagonal one) as a linear 16-bit image (or, with ``srgb``, an sRGB one) and an
+    8-bit sRGB preview. Clipped pixels come out white (:func:`ccjax.correction.correct`).
 
     Every file is written atomically (a temporary name renamed into place); existing files are
     replaced, so a caller that must not replace them checks first.
@@ -157,6 +159,10 @@ def correct_folder(
         preprocessing, dark, read_options, masks, progress: as :func:`estimate_folder`.
         each: called after each image is written with ``(index in the source, estimate, output,
             preview)``.
+        srgb: 8 or 16: write the output as sRGB with that many bits instead of linear camera RGB,
+            at full resolution and without the preview's exposure change (the world's
+            camera-to-sRGB matrix, :func:`ccjax.io.preview_matrix`, then the sRGB transfer
+            curve: the canonical white at full scale is sRGB white).
 
     Returns:
         The :class:`~ccjax.runs.images.ImageRun`.
@@ -177,6 +183,8 @@ def correct_folder(
         shown = [output.with_name(f"{output.stem}_preview.png") for output in written]
     if previews is not None:
         shown = [Path(preview) for preview in previews]
+    if srgb not in (None, 8, 16):
+        raise ValueError(f"srgb: expected 8 or 16 bits (or None for linear output), got {srgb!r}")
     if len(written) != len(source) or len(shown) != len(source):
         raise ValueError(
             f"outputs, previews: expected one each per image ({len(source)}), got {len(written)} and {len(shown)}"
@@ -188,7 +196,10 @@ def correct_folder(
         estimate = estimates[label]
         # Clipped pixels come out white (1.0 is the sensor's saturation on the unit scale).
         corrected = np.asarray(correction.correct(image.rgb, estimate.illuminant, canonical, sharpening, 1.0))
-        io.write_linear(written[index], corrected)
+        if srgb is None:
+            io.write_linear(written[index], corrected)
+        else:
+            io.write_codes(written[index], io.encode_srgb(corrected @ matrix.T, srgb))
         io.write_preview(shown[index], corrected, matrix)
         if each is not None:
             each(index, estimate, written[index], shown[index])
