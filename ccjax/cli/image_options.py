@@ -60,6 +60,12 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="accept 8-bit files as linear data (they are refused otherwise)",
     )
+    parser.add_argument(
+        "--decode-srgb",
+        action="store_true",
+        help="the images (not raw files) are sRGB-encoded, as JPEG and most 8-bit files are: undo the sRGB curve "
+        "(colour-science) before estimating; 8-bit files and JPEG are accepted",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -69,6 +75,7 @@ def read_options(args) -> dict:
         "black_level": args.black_level,
         "saturation": args.saturation,
         "assume_linear": args.assume_linear,
+        "decode_srgb": args.decode_srgb,
     }
 
 
