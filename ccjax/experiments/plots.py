@@ -36,6 +36,16 @@ def _pyplot():
     return plt
 
 
+def _finish(plt, fig, path, title: str) -> None:
+    """Title, lay out and write a figure (atomically, :func:`ccjax.io.writing.write_figure`), then free it."""
+    fig.suptitle(title)
+    fig.tight_layout()
+    try:
+        write_figure(fig, path, dpi=120, bbox_inches="tight")
+    finally:
+        plt.close(fig)
+
+
 def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"), summary: str = "rms", title=None):
     """Error versus number of surfaces (log2 x axis, as the figures of Barnard 1999 ch. 4), one panel per statistic.
 
@@ -65,12 +75,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
         ax.grid(alpha=0.3)
     handles, names = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, names, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.suptitle(title or f"{result.n_scenes} scenes per point")
-    fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    _finish(plt, fig, path, title or f"{result.n_scenes} scenes per point")
 
 
 def plot_world(world: World, path) -> None:
@@ -139,9 +144,4 @@ def plot_image_errors(results: ImageResults, path, title: str | None = None) -> 
     for ax in (cumulative, each):
         ax.grid(alpha=0.3)
     cumulative.legend(fontsize=8, loc="lower right")
-    fig.suptitle(title or f"angular error over {len(results.paths)} images (hollow: fell back or relaxed)")
-    fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    _finish(plt, fig, path, title or f"angular error over {len(results.paths)} images (hollow: fell back or relaxed)")
