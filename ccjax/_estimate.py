@@ -11,12 +11,15 @@ from ccjax.world import World
 
 
 def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
-    """Estimate the illuminant of one scene or a batch, with a label or a fitted model.
+    """Estimate the illuminant of one scene (or a batch of images), with a label or a fitted model.
 
-    The model's input kind decides what ``x`` is: surface estimators take a surface list ``(P, 3)``
-    or a batch ``(B, P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch
-    ``(B, H, W, 3)``. Anything else raises a ``ValueError`` saying what to pass (images reach
-    surface estimators through the image pipeline, :mod:`ccjax.preprocessing`).
+    The model's input kind decides what ``x`` is: surface estimators take one surface list
+    ``(P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch ``(B, H, W, 3)``.
+    Anything else raises a ``ValueError`` saying what to pass. A 3-D array given to a surface
+    estimator is refused, since an image ``(H, W, 3)`` would pass for a batch of ``H`` surface
+    lists: images reach surface estimators through the image pipeline
+    (:func:`ccjax.preprocessing.estimate_image`), batches of surface lists through
+    :func:`ccjax.estimate_batch`.
 
     A label is fitted through :mod:`ccjax.runs.store` (in memory and on disk, so a later process
     reads the fit), and the compiled programs go to JAX's persistent compilation cache in the ccjax
@@ -31,7 +34,8 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
         world: the world a label is fitted to (default :meth:`World.default`).
 
     Returns:
-        An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like ``x``.
+        An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like an image
+        batch ``x``.
     """
     enable_compilation_cache()
     if isinstance(method, str):
@@ -51,8 +55,7 @@ def _compiled_runner():
 
     @eqx.filter_jit
     def run(model, x, mask):
-        one_scene_ndim = 2 if model.input_kind == "surfaces" else 3
-        return model(x, mask) if x.ndim == one_scene_ndim else estimate_batch(model, x, mask)
+        return estimate_batch(model, x, mask) if x.ndim == 4 else model(x, mask)
 
     return run
 

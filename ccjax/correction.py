@@ -53,13 +53,25 @@ def apply_map(rgb: Float[Array, "... 3"], matrix: Float[Array, "3 3"]) -> Float[
 
 
 def correct(
-    rgb: ArrayLike, illuminant: ArrayLike, canonical_white: ArrayLike, sharpening: ArrayLike | None = None
+    rgb: ArrayLike,
+    illuminant: ArrayLike,
+    canonical_white: ArrayLike,
+    sharpening: ArrayLike | None = None,
+    saturation: float | None = None,
 ) -> Float[Array, "... 3"]:
     """Map an image from the estimated light to the canonical light (jit-able).
+
+    Clip to white: with ``saturation``, a pixel with a channel at or above it comes out as the
+    canonical white with its brightest channel at ``saturation``. Its true colour is unknown (the
+    sensor recorded its clipped channels at the ceiling, not their values), and mapped like the
+    other pixels a clipped white takes the colour of the gains (a magenta highlight where the green
+    gain is the largest); the brightest white the output can show is what a highlight looks like.
 
     Arguments:
         rgb: ``(..., 3)`` linear camera RGB.
         illuminant, canonical_white, sharpening: see :func:`correction_map`.
+        saturation: the sensor's clip level on ``rgb``'s scale (1.0 for a :class:`ccjax.io.LinearImage`),
+            or None to map clipped pixels like the others.
 
     Returns:
         The corrected pixels; a diagonal map is applied as per-channel gains, a sharpened one as a
@@ -67,5 +79,10 @@ def correct(
     """
     rgb, illuminant, canonical_white = jnp.asarray(rgb), jnp.asarray(illuminant), jnp.asarray(canonical_white)
     if sharpening is None:
-        return rgb * diagonal_gains(illuminant, canonical_white)
-    return apply_map(rgb, correction_map(illuminant, canonical_white, sharpening))
+        corrected = rgb * diagonal_gains(illuminant, canonical_white)
+    else:
+        corrected = apply_map(rgb, correction_map(illuminant, canonical_white, sharpening))
+    if saturation is None:
+        return corrected
+    white = (saturation * canonical_white / jnp.max(canonical_white)).astype(corrected.dtype)
+    return jnp.where(jnp.any(rgb >= saturation, axis=-1, keepdims=True), white, corrected)

@@ -83,8 +83,10 @@ def _cell_code(text: str) -> str:
     # stays visible there): write the code as HTML with the pipe as a character reference.
     # Markdown still reads inline HTML's content: brackets become character references too, or
     # ``[FL-][STD-|SPEC-]`` is taken for a reference link.
-    escaped = html.escape(text).replace("|", "&#124;").replace("[", "&#91;").replace("]", "&#93;")
-    return "<code>" + escaped + "</code>"
+    escaped = html.escape(text).replace("|", "&#124;<wbr>").replace("[", "&#91;").replace("]", "&#93;<wbr>")
+    # The cell's code never wraps by itself (docs/stylesheets/extra.css); it may break after a
+    # choice, an optional part or a group, not inside a token.
+    return "<code>" + escaped.replace(")", ")<wbr>") + "</code>"
 
 
 # -- the estimator catalogue ---------------------------------------------------------------------

@@ -149,9 +149,13 @@ def main(argv: list[str] | None = None) -> int:
 
     labels = [*TRACEABLE, *looped]
     print(f"median angular error (degrees), {args.scenes} scenes of {args.surfaces} surfaces per camera")
-    print(f"{'camera':<34}" + "".join(f"{label[:12]:>13}" for label in labels))
+    # Each column as wide as its label (labels such as ND-ECRULE-SCWIA-12 are longer than a number).
+    widths = [max(len(label), 7) + 2 for label in labels]
+    namewidth = max(len("camera"), *(len(name) for name in names)) + 1
+    print(f"{'camera':<{namewidth}}" + "".join(f"{label:>{width}}" for label, width in zip(labels, widths)))
     for index, name in enumerate(names):
-        print(f"{name[:33]:<34}" + "".join(f"{np.median(errors[label][index]):>13.3f}" for label in labels))
+        cells = (f"{np.median(errors[label][index]):>{width}.3f}" for label, width in zip(labels, widths))
+        print(f"{name:<{namewidth}}" + "".join(cells))
     print(
         f"\n{len(TRACEABLE)} traceable methods x {len(names)} cameras in one vmapped, jitted function: "
         f"{vmapped_seconds:.1f} s (with compilation); {len(looped)} looped with cached fits: {looped_seconds:.1f} s"

@@ -19,6 +19,10 @@ gamut mapping (ECRULE-MV and ND-ECRULE-SCWIA-12).
 
 Run:  python examples/learn_correlation.py [--steps 300] [--images 500]; ``--quick``: a smoke test
 (20 steps, no gamut method).
+
+The matrix kept is the one with the lowest loss on validation images lit by training lights held
+out of the training batches, the counted one included: a matrix that fits the lights it trains on
+better can fit unseen lights worse.
 """
 
 from __future__ import annotations
@@ -80,8 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     # One compiled call draws every Mondrian (layouts and reflectances): the first ``pool`` are the
     # training layouts, the rest the held-out images, rendered under the world's *test* lights. The
     # training layouts' own lights do not matter: every step relights them under training lights.
+    n_validation = max(64, args.pool // 4)
     layouts = eqx.filter_jit(scenes.mondrian_batch)(
-        scenes.scene_keys(jax.random.key(1), 0, args.pool + args.images),
+        scenes.scene_keys(jax.random.key(1), 0, args.pool + n_validation + args.images),
         scenes.SceneTables.from_world(world),
         SIZE,
         SIZE,
@@ -89,11 +94,20 @@ def main(argv: list[str] | None = None) -> int:
         noise=noise,
     )
     pool = jax.tree_util.tree_map(lambda x: x[: args.pool], layouts)
-    held_out = jax.tree_util.tree_map(lambda x: x[args.pool :], layouts)
-    # Training images are rendered under the training lights only.
-    training_world = eqx.tree_at(lambda w: w.test_illuminants, world, world.train_illuminants)
+    validation_layouts = jax.tree_util.tree_map(lambda x: x[args.pool : args.pool + n_validation], layouts)
+    held_out = jax.tree_util.tree_map(lambda x: x[args.pool + n_validation :], layouts)
+    # Training images are rendered under the training lights only, less every 4th, which light the
+    # validation images: the matrix kept is the one with the lowest validation loss, the counted
+    # one included (early stopping). Validated under the lights it trains on, a learned matrix
+    # that fits those lights better and unseen ones worse (the held-out test lights) was kept.
+    lights = world.train_illuminants
+    validation_lights = np.arange(lights.shape[0]) % 4 == 0
+    training_world = eqx.tree_at(lambda w: w.test_illuminants, world, lights[~validation_lights])
     train_tables = scenes.SceneTables.from_world(training_world)
+    validation_world = eqx.tree_at(lambda w: w.test_illuminants, world, lights[validation_lights])
+    validation_tables = scenes.SceneTables.from_world(validation_world)
     optimiser = optax.adam(args.learning_rate)
+    validation = augment.relight_mondrians(jax.random.key(3), validation_tables, validation_layouts, noise=noise)
 
     def loss_of(matrix, images, truth):
         model = eqx.tree_at(lambda m: m.log_probability, counted, matrix)
@@ -110,11 +124,19 @@ def main(argv: list[str] | None = None) -> int:
         updates, state = optimiser.update(grad, state)
         return optax.apply_updates(matrix, updates), state, loss
 
+    validation_loss = jax.jit(lambda matrix: loss_of(matrix, validation.image, validation.illuminant))
     matrix, state, trace = counted.log_probability, optimiser.init(counted.log_probability), []
+    best, best_step = (matrix, float(validation_loss(matrix))), 0
+    first_validation = best[1]
+    every = max(1, args.steps // 20)
     start = time.perf_counter()
     for index in range(args.steps):
         matrix, state, loss = step(matrix, state, jax.random.fold_in(jax.random.key(2), index))
         trace.append(float(loss))
+        if (index + 1) % every == 0 or index + 1 == args.steps:
+            current = float(validation_loss(matrix))
+            if current < best[1]:
+                best, best_step = (matrix, current), index + 1
     seconds = time.perf_counter() - start
     window = max(1, min(20, args.steps // 4))
     print(
@@ -122,7 +144,12 @@ def main(argv: list[str] | None = None) -> int:
         f"training angular loss (first/last {window} steps) {np.mean(trace[:window]):.3f} -> "
         f"{np.mean(trace[-window:]):.3f} deg"
     )
-    learned = eqx.tree_at(lambda m: m.log_probability, counted, matrix)
+    kept = f"step {best_step}" if best_step else "the counted matrix (no step lowered it)"
+    print(
+        f"validation ({n_validation} images, lights held out of training): {first_validation:.3f} -> "
+        f"{best[1]:.3f} deg; kept {kept}"
+    )
+    learned = eqx.tree_at(lambda m: m.log_probability, counted, best[0])
 
     rgb, mask = as_surfaces(held_out.image)
     image_mask = jnp.ones(held_out.image.shape[:3], bool)

@@ -162,8 +162,10 @@ def main(argv: list[str] | None = None) -> int:
         truth = generate(
             folder, n_images=args.images, size=args.size, n_patches=args.patches, camera=args.camera, seed=args.seed
         )
+        # Without --out the folder is removed at the end: naming it would point at nothing.
+        where = folder if args.out else "a temporary folder (removed at the end; --out DIR keeps them)"
         print(
-            f"wrote {args.images} images of {args.size}x{args.size} ({args.camera}) to {folder} "
+            f"wrote {args.images} images of {args.size}x{args.size} ({args.camera}) to {where} "
             f"in {time.perf_counter() - start:.0f} s"
         )
         if args.generate_only:

@@ -62,18 +62,12 @@ def small_world_commands(tmp_path, monkeypatch, small_test_world):
     return tmp_path
 
 
-def pytest_collection_modifyitems(config, items):
-    # Tests marked external_data skip with the reason when ../shared/data is absent (fail under
-    # CI=true); the check runs once, before the first such test.
-    del config
-    for item in items:
-        if item.get_closest_marker("external_data") is not None:
-            item.add_marker(pytest.mark.usefixtures("_external_data"))
-
-
-@pytest.fixture(scope="session")
-def _external_data() -> None:
-    require_external_data()
+def pytest_runtest_setup(item):
+    # Tests marked external_data skip with the reason when the external data is absent (fail under
+    # CI=true). A setup hook, not a fixture mark added at collection: pytest has resolved each
+    # test's fixtures before ``pytest_collection_modifyitems`` runs, so such a mark is ignored.
+    if item.get_closest_marker("external_data") is not None:
+        require_external_data()
 
 
 def pytest_configure(config):

@@ -206,7 +206,21 @@ def test_estimate_dispatches_on_the_input_kind(image_batch, surface_batch, world
     np.testing.assert_allclose(one.illuminant, many.illuminant[0], rtol=1e-6)
     rgb, mask = surface_batch
     assert ccjax.estimate("GW", rgb[0]).illuminant.shape == (3,)
-    assert ccjax.estimate("GW", rgb, mask).illuminant.shape == (3, 3)
+    assert estimate_batch(registry.fit("GW", world), rgb, mask).illuminant.shape == (3, 3)
+
+
+@pytest.mark.parametrize("shape", [(30, 40, 3), (2, 8, 3)])
+def test_a_3d_array_to_a_surface_estimator_is_refused_not_estimated_per_row(shape):
+    """An (H, W, 3) image has the shape of H surface lists: ``ccjax.estimate`` refuses it (naming
+    ``rgb`` and the shape) instead of returning one light per image row."""
+    x = np.full(shape, 0.5, np.float32)
+    pattern = (
+        rf"rgb: GreyWorld is a surface estimator and takes one surface list .*got shape \({shape[0]}, {shape[1]}, 3\)"
+    )
+    with pytest.raises(ValueError, match=pattern):
+        ccjax.estimate("GW", x)
+    with pytest.raises(ValueError, match=r"rgb: .*estimate_batch"):
+        ccjax.estimate("shades-of-grey-p6", x, np.ones(shape[:2], bool))
 
 
 def test_wrong_input_kind_is_a_clear_error(image_batch, surface_batch, world):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -34,3 +36,81 @@ def test_gains_are_the_diagonal_of_the_map():
     np.testing.assert_allclose(
         np.asarray(correction.apply_map(jnp.ones((2, 3)), jnp.diag(jnp.array([1.0, 2.0, 3.0])))), [[1, 2, 3]] * 2
     )
+
+
+def test_clipped_pixels_come_out_as_the_canonical_white():
+    """Clip to white: a pixel with a channel at saturation becomes the canonical white at full
+    scale; the others get the gains (NumPy oracle: rgb * gains)."""
+    light, canonical = np.array([0.9, 0.6, 0.3], np.float32), np.array([0.5, 1.0, 0.7], np.float32)
+    rng = np.random.default_rng(1)
+    rgb = rng.uniform(0.05, 0.9, (6, 7, 3)).astype(np.float32)
+    rgb[0, 0] = 1.0  # every channel clipped
+    rgb[1, 1, 0] = 1.0  # one channel clipped
+    gains = np.asarray(correction.diagonal_gains(jnp.asarray(light), jnp.asarray(canonical)))
+    for sharpening in (None, np.eye(3, dtype=np.float32)):
+        got = np.asarray(correction.correct(rgb, light, canonical, sharpening, 1.0))
+        np.testing.assert_allclose(got[0, 0], canonical / canonical.max(), rtol=1e-6)
+        np.testing.assert_allclose(got[1, 1], canonical / canonical.max(), rtol=1e-6)
+        others = np.ones(rgb.shape[:2], bool)
+        others[0, 0] = others[1, 1] = False
+        np.testing.assert_allclose(got[others], rgb[others] * gains, rtol=1e-5)
+    # Without the rule a clipped white takes the gains' colour (what the rule prevents).
+    plain = np.asarray(correction.correct(rgb, light, canonical))[0, 0]
+    assert np.ptp(plain / canonical) > 0.5
+
+
+def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_commands, capsys):
+    """A saturated (65535, 65535, 65535) blob in a 16-bit PNG under a coloured light: the corrected
+    file shows it as the canonical white at full scale, the sRGB preview as neutral white."""
+    from ccjax import cli, io
+    from ccjax.runs import store
+
+    folder = small_world_commands
+    rng = np.random.default_rng(2)
+    rgb = rng.uniform(0.05, 0.6, (32, 40, 3)) * np.array([1.0, 0.7, 0.4])
+    rgb[8:16, 10:20] = 1.0
+    io.write_png(folder / "in.png", io.quantise(rgb))
+    status = cli.main(["correct", str(folder / "in.png"), str(folder / "out.png"), "--method", "GW", "--no-progress"])
+    assert status == 0
+    # The estimate is printed with five decimals, not float32 noise (0.030889999121427536).
+    printed = capsys.readouterr().out
+    assert re.search(r": illuminant \[\d\.\d{5}, \d\.\d{5}, \d\.\d{5}\] \(ok: True\) -> ", printed), printed
+    out, preview = io.read_png(folder / "out.png"), io.read_png(folder / "out_preview.png")
+    canonical = np.asarray(store.world().canonical_white, np.float64)
+    want = np.round(canonical / canonical.max() * 65535)
+    assert np.all(np.abs(out[8:16, 10:20].astype(np.float64) - want) <= 1), (out[8, 10], want)
+    blob = preview[8:16, 10:20].astype(int)
+    # Neutral, and among the brightest of the preview (its exposure is set by the 99th percentile).
+    assert np.all(blob.max(axis=-1) - blob.min(axis=-1) <= 1) and blob.min() >= np.percentile(preview, 90), preview[
+        8, 10
+    ]
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_correct_srgb_writes_full_resolution_srgb(small_world_commands, bits):
+    """``--srgb 8|16``: the corrected image through the world's camera-to-sRGB matrix and the
+    IEC 61966-2-1 curve (written out here), no exposure change; the clipped blob is sRGB white."""
+    from ccjax import cli, correction, io
+    from ccjax.runs import store
+
+    folder = small_world_commands
+    rng = np.random.default_rng(3)
+    rgb = rng.uniform(0.05, 0.6, (24, 30, 3)) * np.array([1.0, 0.7, 0.4])
+    rgb[4:8, 4:9] = 1.0
+    io.write_png(folder / "in.png", io.quantise(rgb))
+    argv = ["correct", str(folder / "in.png"), str(folder / "out.tif"), "--method", "GW", "--srgb", str(bits)]
+    assert cli.main([*argv, "--no-progress"]) == 0
+    import tifffile
+
+    got = tifffile.imread(folder / "out.tif")
+    assert got.dtype == (np.uint8 if bits == 8 else np.uint16) and got.shape == rgb.shape
+    world = store.world()
+    read = io.read_png(folder / "in.png").astype(np.float64) / 65535
+    estimate = np.asarray(io.read_png(folder / "in.png"), np.float64)[~np.any(read >= 0.98, -1)]
+    estimate = 2 * (estimate[np.all(estimate > 0, -1)] / 65535).mean(axis=0)  # grey world
+    corrected = np.asarray(correction.correct(read.astype(np.float32), estimate, world.canonical_white, None, 1.0))
+    linear = np.clip(corrected @ np.asarray(io.preview_matrix(world), np.float64).T, 0, 1)
+    encoded = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+    want = np.round(encoded * (2**bits - 1))
+    assert np.max(np.abs(got.astype(np.float64) - want)) <= 1 + (2**bits - 1) * 2e-4
+    assert np.all(got[4:8, 4:9] == 2**bits - 1)  # the clipped blob: sRGB white

@@ -128,3 +128,23 @@ def test_every_navigation_page_exists(hooks):
             folder = pathlib.PurePosixPath(path).parent
             for image in re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", content):
                 assert str(folder / image).removeprefix("./") in generated, (path, image)
+
+
+def test_every_readme_python_block_runs_as_pasted(tmp_path):
+    """Each ```python block of the README runs on its own, in a fresh process outside the checkout,
+    with an empty cache and no external data (the embedded default world only), as a newcomer
+    pastes it."""
+    import os
+    import subprocess
+    import sys
+
+    blocks = re.findall(r"^```python\n(.*?)^```", (ROOT / "README.md").read_text(), re.S | re.M)
+    assert blocks
+    env = {k: v for k, v in os.environ.items() if k not in ("CCJAX_DATA", "CI")}
+    env |= {"CCJAX_CACHE": str(tmp_path / "cache"), "MPLBACKEND": "Agg"}
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    for number, block in enumerate(blocks):
+        run = subprocess.run(
+            [sys.executable, "-c", block], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900
+        )
+        assert run.returncode == 0, f"README python block {number + 1}:\n{run.stderr[-3000:]}"

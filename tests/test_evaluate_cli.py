@@ -124,3 +124,33 @@ def test_mask_folder(setup, capsys):
     err = capsys.readouterr().err
     assert "--mask" in err and "image-0001.png" in err
     del gt
+
+
+def test_images_without_a_ground_truth_row_are_named_and_refused_unless_allowed(setup, capsys):
+    """Four images, two ground-truth rows: ``evaluate`` names both unlisted files and exits 2;
+    ``--allow-missing`` scores the two listed ones and still names the others (also in the JSON)."""
+    from ccjax.experiments.folders import evaluate_folder
+
+    gt = _dataset(setup / "set", count=4)
+    truth = io.read_ground_truth(gt)
+    listed = sorted(truth)[:2]
+    io.write_ground_truth(setup / "two.csv", listed, np.stack([truth[name] for name in listed]))
+    unlisted = [str(setup / "set" / name) for name in sorted(truth)[2:]]
+    argv = ["evaluate", str(setup / "set"), "--ground-truth", str(setup / "two.csv"), "--methods", "GW"]
+    assert cli.main([*argv, "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "--ground-truth: 2 image(s)" in err and all(path in err for path in unlisted), err
+    json_path = setup / "r.json"
+    plot = setup / "errors.png"
+    assert cli.main([*argv, "--no-progress", "--allow-missing", "--json", str(json_path), "--plot", str(plot)]) == 0
+    assert io.png_header(plot).width > 600  # the per-image errors' figure
+    out = capsys.readouterr().out
+    assert f"not scored, no ground-truth row (2): {', '.join(unlisted)}" in out
+    assert "over 2 images" in out
+    # No --camera: the header names no camera (only methods that use none ran).
+    assert out.splitlines()[0].startswith("camera: none given") and "Canon" not in out.splitlines()[0]
+    assert json.loads(json_path.read_text())["unlisted"] == unlisted
+    with pytest.raises(ValueError, match=r"ground_truth: 2 image\(s\) .*allow_missing=True"):
+        evaluate_folder(setup / "set", setup / "two.csv", ["GW"])
+    allowed = evaluate_folder(setup / "set", setup / "two.csv", ["GW"], allow_missing=True)
+    assert allowed.unlisted == unlisted and len(allowed.results.paths) == 2

@@ -157,7 +157,16 @@ def test_fewer_images_in_the_training_folds_than_training_needs(setup, image_set
     rows = list(io.read_ground_truth(truth).items())[:3]
     small = setup / "three.csv"
     small.write_text("image,r,g,b\n" + "".join(f"{n},{r},{g},{b}\n" for n, (r, g, b) in rows))
-    argv = ["evaluate", str(folder), "--ground-truth", str(small), "--methods", "GW", "--no-progress"]
+    argv = [
+        "evaluate",
+        str(folder),
+        "--ground-truth",
+        str(small),
+        "--methods",
+        "GW",
+        "--no-progress",
+        "--allow-missing",
+    ]
     status = cli.main([*argv, "--camera", "Canon EOS 5D Mark II", "--folds", "3", "--train", LABEL])
     assert status == 2
     assert "--folds: fold 0's training set (the other folds) has 2 usable images" in capsys.readouterr().err

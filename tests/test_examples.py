@@ -69,6 +69,9 @@ def test_camera_sweep_quick():
 def check_learn_correlation(out: str, gamut: tuple[str, ...]) -> None:
     loss = re.search(r"training angular loss .* ([\d.]+) -> ([\d.]+) deg", out)
     assert loss is not None and 0 < float(loss.group(2)) < 20
+    # The matrix kept never has a higher validation loss than the counted one it starts from.
+    validation = re.search(r"validation \(\d+ images, lights held out of training\): ([\d.]+) -> ([\d.]+) deg", out)
+    assert validation is not None and float(validation.group(2)) <= float(validation.group(1))
     # The held-out table: every method's median, mean and worst-25 % mean (degrees, in that order).
     for method in ("C-by-C-MMSE (learned)", "C-by-C-MMSE (counted)", "GW", "grey-edge-1-6-2", *gamut):
         row = table_rows(out, rf"{re.escape(method)}\s+\d")

@@ -254,13 +254,15 @@ def test_probe_refuses_what_read_image_refuses(tmp_path):
     tifffile.imwrite(tmp_path / "grey.tif", grey)
     (tmp_path / "eight.png").write_bytes(_png8(np.full((3, 3, 3), 9, np.uint8)))
     (tmp_path / "text.png").write_bytes(b"not a png at all")
-    (tmp_path / "a.jpg").write_bytes(b"\xff\xd8")
+    (tmp_path / "a.bmp").write_bytes(b"\xff\xd8")
+    (tmp_path / "cut.jpg").write_bytes(b"\xff\xd8")  # a JPEG cut after its first marker
     tifffile.imwrite(tmp_path / "cmyk.tif", np.full((3, 3, 4), 9, np.uint8), photometric="separated")
     cases = {
         "grey.tif": "greyscale",
         "eight.png": "8-bit",
         "text.png": "not a PNG file",
-        "a.jpg": "unsupported file type",
+        "a.bmp": "unsupported file type",
+        "cut.jpg": "Error",  # the decoder's (Pillow's header reader, imagecodecs)
         "cmyk.tif": "SEPARATED is not supported",
     }
     for name, message in cases.items():

@@ -96,8 +96,8 @@ def test_bad_files_raise_clear_errors(tmp_path):
     with pytest.raises(FileNotFoundError):
         io.read_image(tmp_path / "missing.png")
     with pytest.raises(ValueError, match="unsupported file type"):
-        (tmp_path / "a.jpg").write_bytes(b"")
-        io.read_image(tmp_path / "a.jpg")
+        (tmp_path / "a.bmp").write_bytes(b"")
+        io.read_image(tmp_path / "a.bmp")
     linear = io.read_image(tmp_path / "eight.png", assume_linear=True)
     np.testing.assert_allclose(linear.rgb, 100 / 255.0, rtol=1e-6)
 
@@ -150,6 +150,21 @@ def test_preview_renders_the_canonical_white_grey():
     assert preview.dtype == np.uint8 and np.all(preview == preview[0, 0, 0])
 
 
+def test_preview_encodes_with_the_iec_61966_2_1_curve():
+    """Oracle: the sRGB transfer curve of IEC 61966-2-1 written out (linear toe below 0.0031308);
+    the identity matrix and a 100th-percentile exposure leave the values as given."""
+    linear = np.linspace(0.0, 1.0, 301, dtype=np.float32).reshape(1, 301, 1) * np.ones((1, 1, 3), np.float32)
+    want = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear.astype(np.float64), 1 / 2.4) - 0.055)
+    got = io.srgb_preview(linear, None, percentile=100.0)
+    assert np.max(np.abs(got.astype(int) - np.round(want * 255).astype(int))) == 0
+    # The XYZ -> sRGB matrix colour-science derives from the primaries and D65 is IEC 61966-2-1's
+    # published one (the constants the previews used) to its 4 decimals.
+    import colour
+
+    iec = [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
+    np.testing.assert_allclose(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, iec, atol=5e-4)
+
+
 def test_preview_matrix_is_cached_as_arrays(tmp_path, monkeypatch):
     from ccjax.io import preview
 
@@ -198,3 +213,34 @@ def test_raw_file_through_rawpy(tmp_path):
     assert image.rgb.shape == (32, 48, 3)  # one pixel per Bayer quad (no demosaicing)
     np.testing.assert_allclose(image.rgb[5, 5], np.array([1000, 2000, 3000]) / 4095, rtol=2e-4)
     assert image.clipped[0, 0] and image.clipped.sum() == 1
+
+
+def _srgb_decoded(codes, maximum):
+    """Oracle: the IEC 61966-2-1 decoding curve written out."""
+    v = codes.astype(np.float64) / maximum
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+def test_decode_srgb_reads_8_bit_png_and_jpeg_as_linear(tmp_path):
+    """``decode_srgb``: 8-bit PNG and JPEG are accepted and their codes decoded with the sRGB
+    curve; without it both are refused, naming the file and the option."""
+    import imagecodecs
+
+    rng = np.random.default_rng(4)
+    codes = rng.integers(1, 250, (12, 16, 3)).astype(np.uint8)
+    io.write_png(tmp_path / "a.png", codes)
+    (tmp_path / "b.jpg").write_bytes(imagecodecs.jpeg8_encode(codes, level=95))
+    for name in ("a.png", "b.jpg"):
+        with pytest.raises(ValueError, match=rf"{name} is 8-bit.*--decode-srgb"):
+            io.probe_image(tmp_path / name)
+        with pytest.raises(ValueError, match=rf"{name} is 8-bit.*--decode-srgb"):
+            io.read_image(tmp_path / name)
+        info = io.probe_image(tmp_path / name, decode_srgb=True)
+        assert (info.height, info.width, info.channels, info.bit_depth) == (12, 16, 3, 8)
+    png = io.read_image(tmp_path / "a.png", decode_srgb=True)
+    np.testing.assert_allclose(png.rgb, _srgb_decoded(codes, 255), rtol=1e-5, atol=1e-7)
+    jpeg = io.read_image(tmp_path / "b.jpg", decode_srgb=True)
+    decoded = np.asarray(imagecodecs.jpeg8_decode((tmp_path / "b.jpg").read_bytes()))
+    np.testing.assert_allclose(jpeg.rgb, _srgb_decoded(decoded, 255), rtol=1e-5, atol=1e-7)
+    # A folder lists the JPEG (it was skipped without a word).
+    assert [p.name for p in io.list_images([tmp_path])] == ["a.png", "b.jpg"]

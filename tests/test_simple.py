@@ -224,8 +224,8 @@ def test_estimate_validates_input():
 
 
 def test_estimate_batches(default_world):
-    rgb = np.random.default_rng(1).uniform(size=(4, 8, 3))
-    batch = ccjax.estimate("GW", rgb, world=default_world)
+    rgb = np.random.default_rng(1).uniform(size=(4, 8, 3)).astype(np.float32)
+    batch = ccjax.estimate_batch(ccjax.fit("GW", default_world), jnp.asarray(rgb), jnp.ones(rgb.shape[:2], bool))
     one = ccjax.estimate("GW", rgb[2], world=default_world)
     assert batch.illuminant.shape == (4, 3)
     np.testing.assert_allclose(batch.illuminant[2], one.illuminant, rtol=1e-6)
@@ -266,3 +266,34 @@ def test_tiny_scenes_are_estimated(models, run):
         tiny = run(models[label], rgb * np.float32(1e-30), mask)
         assert bool(tiny.ok), label
         np.testing.assert_allclose(np.asarray(tiny.illuminant) * 1e30, base.illuminant, rtol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("typo", "suggested"),
+    [
+        ("grey-egde-1-6-2", "'grey-edge-1-6-2' (grey-edge-<n>-<p>-<sigma>"),
+        ("greyworld", "'GW'"),
+        ("Grey World", "'GW'"),
+        ("shades-of-gray-p6", "'shades-of-grey-p6' (shades-of-grey-p<P>)"),
+        ("maxrgb", "'MAX-RGB'"),
+    ],
+)
+def test_a_mistyped_label_gets_a_did_you_mean_and_a_short_message(typo, suggested):
+    with pytest.raises(ValueError) as error:
+        registry.lookup(typo)
+    message = str(error.value)
+    assert message.startswith(f"method: unknown label {typo!r}; did you mean {suggested}")
+    assert "`ccjax methods`" in message and len(message) < 300  # not the ~900-character grammar
+    with pytest.raises(ValueError, match=r"unknown label 'xyz'; `ccjax methods`"):
+        registry.lookup("xyz")
+
+
+def test_gw_and_max_rgb_are_accepted_in_lower_case(default_world):
+    rgb = jnp.asarray(np.random.default_rng(2).uniform(0.1, 1.0, (16, 3)), jnp.float32)
+    mask = jnp.ones(16, bool)
+    for lower, upper in (("gw", "GW"), ("max-rgb", "RETINEX")):
+        got = registry.fit(lower, default_world)(rgb, mask).illuminant
+        np.testing.assert_array_equal(got, registry.fit(upper, default_world)(rgb, mask).illuminant)
+    np.testing.assert_allclose(
+        registry.fit("gw", default_world)(rgb, mask).illuminant, 2 * np.asarray(rgb, np.float64).mean(axis=0), rtol=1e-6
+    )

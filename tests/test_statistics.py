@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import reference
 from scipy import stats
 
 from ccjax import metrics
@@ -32,6 +33,18 @@ def test_interval_matches_scipy_bca(errors, statistic):
     low, high = metrics.bootstrap_interval(errors, statistic, resamples=20000)
     width = want.high - want.low
     assert abs(low - want.low) < 0.05 * width and abs(high - want.high) < 0.05 * width
+
+
+@pytest.mark.parametrize("statistic", ["mean", "median"])
+@pytest.mark.parametrize("size", [30, 200])
+def test_interval_agrees_with_the_bca_written_out(errors, statistic, size):
+    """Oracle: BCa written out in NumPy (tests/reference.py, the formulas ccjax computed before it
+    called SciPy); different resampling streams, so agreement to Monte Carlo error."""
+    sample = errors[:size]
+    want_low, want_high = reference.bca_interval(sample, statistic, resamples=20000, seed=3)
+    low, high = metrics.bootstrap_interval(sample, statistic, resamples=20000)
+    width = want_high - want_low
+    assert abs(low - want_low) < 0.06 * width and abs(high - want_high) < 0.06 * width
 
 
 def test_intervals_cover_the_true_mean_and_median():

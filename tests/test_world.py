@@ -1,5 +1,10 @@
 """Spectra, data loaders, cameras and worlds."""
 
+import os
+import pathlib
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from conftest import require_external_data
@@ -79,6 +84,43 @@ def test_camera_validation_and_lookup():
 def test_missing_external_data_error_names_the_file(tmp_path):
     with pytest.raises(data.DataNotFoundError, match=r"sony_dxc930.*CCJAX_DATA"):
         data.sony_dxc930(tmp_path)
+
+
+@pytest.mark.parametrize(("ci", "outcome"), [("", "1 skipped"), ("true", "1 error")])
+def test_external_data_marker_skips_when_the_data_is_absent(tmp_path, ci, outcome):
+    """A test marked ``external_data`` skips (errors under CI=true) when the data cannot be found,
+    before its body runs: the suite's conftest in a folder of its own, with the data look-up made
+    to fail as it does on a fresh clone without ../shared."""
+    conftest = pathlib.Path(__file__).with_name("conftest.py").read_text()
+    missing = "def _missing(*args, **kwargs):\n    raise data.DataNotFoundError('no data here')\n"
+    (tmp_path / "conftest.py").write_text(f"{conftest}\n{missing}\ndata.find_data_file = _missing\n")
+    (tmp_path / "test_marked.py").write_text(
+        "import pytest\n\n\n@pytest.mark.external_data\ndef test_needs_data():\n    raise AssertionError\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "CI"} | {"CI": ci}
+    env["PYTHONPATH"] = os.pathsep.join([str(pathlib.Path(__file__).parent.parent), env.get("PYTHONPATH", "")])
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "-p",
+            "no:xdist",
+            "-o",
+            "markers=external_data",
+            ".",
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert outcome in run.stdout.splitlines()[-1], run.stdout + run.stderr
+    assert "AssertionError" not in run.stdout
 
 
 def test_normalisation_puts_brightest_white_channel_at_one(default_world):

@@ -13,7 +13,8 @@ def add_correct(sub) -> None:
         "correct",
         help="correct linear images to the canonical light",
         description="Estimate each image's light, map it to the canonical light with a diagonal map and write the "
-        "corrected linear 16-bit image and an 8-bit sRGB preview. IN and OUT are files, or folders (OUT "
+        "corrected linear 16-bit image (or sRGB, --srgb 8|16) and an 8-bit sRGB preview; pixels with a clipped "
+        "channel come out white. IN and OUT are files, or folders (OUT "
         "is created). Inputs are never replaced; existing outputs need --overwrite; every file is written "
         "to a temporary name and renamed into place.",
     )
@@ -30,6 +31,14 @@ def add_correct(sub) -> None:
         default=None,
         help="3x3 sharpening transform T (text or .npy; rows = sharpened sensors) for a sharpened-diagonal map T^-1 "
         "diag(T w_C / T e) T",
+    )
+    p.add_argument(
+        "--srgb",
+        type=int,
+        choices=(8, 16),
+        default=None,
+        help="write OUTPUT as sRGB with 8 or 16 bits instead of linear camera RGB: full resolution, the "
+        "camera-to-sRGB matrix of the world and the sRGB curve (colour-science), no exposure change",
     )
     overwrite_argument(p, "output images and previews")
     world_arguments(p)
@@ -165,9 +174,13 @@ def run_correct(args) -> int:
     source = image_options.image_source(paths, args)
 
     def report(index, estimate, output, preview) -> None:
-        illuminant = np.asarray(estimate.illuminant)
+        from tqdm.auto import tqdm
+
+        # Five decimals as `ccjax estimate` prints them (float32 has no more to give), written
+        # above the progress bar rather than into it.
+        rgb = ", ".join(f"{v:.5f}" for v in np.asarray(estimate.illuminant, np.float64))
         line = f"(ok: {bool(estimate.ok)}) -> {output}, {preview}"
-        print(f"{source.paths[index]}: illuminant {np.round(illuminant, 5).tolist()} {line}")
+        tqdm.write(f"{source.paths[index]}: illuminant [{rgb}] {line}")
 
     run = runs.correct_folder(
         source,
@@ -181,6 +194,7 @@ def run_correct(args) -> int:
         progress=not args.no_progress,
         each=report,
         overwrite=args.overwrite,
+        srgb=args.srgb,
     )
     raise_failures(list(run.failures.values()), len(paths))
     return 0

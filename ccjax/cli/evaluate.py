@@ -9,7 +9,16 @@ import sys
 import time
 
 from ccjax.cli import image_options
-from ccjax.cli.common import check_outputs, label_list, overwrite_argument, start_processes, world_arguments, write
+from ccjax.cli.common import (
+    check_outputs,
+    check_plot,
+    label_list,
+    overwrite_argument,
+    start_processes,
+    world_arguments,
+    write,
+    write_plot,
+)
 
 
 def add_evaluate(sub) -> None:
@@ -51,6 +60,17 @@ def add_evaluate(sub) -> None:
         type=int,
         default=None,
         help="with --train: training epochs at most (default: ccjax.training.Schedule's, with early stopping)",
+    )
+    p.add_argument(
+        "--allow-missing",
+        action="store_true",
+        help="score the images the ground truth lists when other images of DIR have no row (they are named); "
+        "without it such images are an error (exit 2)",
+    )
+    p.add_argument(
+        "--plot",
+        default=None,
+        help="write a figure of the per-image angular errors (their cumulative distribution and each image's)",
     )
     p.add_argument(
         "--json",
@@ -108,7 +128,11 @@ def header(evaluation, args) -> str:
     else:
         folds = ""
     preparation = args.preprocessing or "each method's default"
-    return f"world: {evaluation.world}; preprocessing: {preparation}{folds}"
+    # Without --camera (or --world) only methods that use no camera run (require_camera): naming
+    # the default world's camera would claim a camera the images were never matched to.
+    given = args.camera is not None or args.world != "default"
+    world = f"world: {evaluation.world}" if given else "camera: none given (these methods use none)"
+    return f"{world}; preprocessing: {preparation}{folds}"
 
 
 def run_evaluate(args) -> int:
@@ -119,7 +143,12 @@ def run_evaluate(args) -> int:
     writer = start_processes()
     check_folds(args)
     image_options.check_labels(args.methods + (args.train or []), args)
-    check_outputs(evaluate_inputs(args), [("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
+    check_outputs(
+        evaluate_inputs(args),
+        [("--json", args.json), ("--csv", args.csv), ("--plot", args.plot)],
+        overwrite=args.overwrite,
+    )
+    check_plot(args.plot)
     image_options.require_camera(args.methods + (args.train or []), args)
     try:
         evaluation = evaluate_folder(
@@ -136,6 +165,7 @@ def run_evaluate(args) -> int:
             read_options=image_options.read_options(args),
             masks=args.mask,
             check_camera=args.camera is not None or args.world != "default",
+            allow_missing=args.allow_missing,
             progress=not args.no_progress,
             log=lambda line: print(line, file=sys.stderr),
         )
@@ -144,6 +174,8 @@ def run_evaluate(args) -> int:
     if not writer:  # under jax.distributed every process holds the pooled results; one reports them
         return 0
     print(header(evaluation, args))
+    if evaluation.unlisted:
+        print(f"not scored, no ground-truth row ({len(evaluation.unlisted)}): {', '.join(evaluation.unlisted)}")
     if evaluation.check is not None:
         print(evaluation.check.message())
     print(evaluation.tables(), flush=True)
@@ -151,6 +183,10 @@ def run_evaluate(args) -> int:
         write(args.json, json.dumps(evaluation.report(), indent=1), overwrite=args.overwrite)
     if args.csv:
         write(args.csv, evaluation.csv(), overwrite=args.overwrite)
+    if args.plot:
+        from ccjax.experiments.plots import plot_image_errors
+
+        write_plot(args.plot, lambda file: plot_image_errors(evaluation.results, file), overwrite=args.overwrite)
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     raise_failures(evaluation.failures, evaluation.total)
     return 0

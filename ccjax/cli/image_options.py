@@ -7,7 +7,14 @@ import argparse
 
 from ccjax.cli.common import check_camera_name, check_camera_option
 
-OPTION_NAMES = {"folds": "--folds", "train": "--train", "epochs": "--epochs", "masks": "--mask"}
+OPTION_NAMES = {
+    "folds": "--folds",
+    "train": "--train",
+    "epochs": "--epochs",
+    "masks": "--mask",
+    "ground_truth": "--ground-truth",
+    "allow_missing": "--allow-missing",
+}
 """The command-line option of each library argument that errors name (see :func:`as_option_error`)."""
 
 
@@ -54,6 +61,12 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
         help="accept 8-bit files as linear data (they are refused otherwise)",
     )
     max_pixels_argument(parser)
+    parser.add_argument(
+        "--decode-srgb",
+        action="store_true",
+        help="the images (not raw files) are sRGB-encoded, as JPEG and most 8-bit files are: undo the sRGB curve "
+        "(colour-science) before estimating; 8-bit files and JPEG are accepted",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -86,6 +99,7 @@ def read_options(args) -> dict:
         "saturation": args.saturation,
         "assume_linear": args.assume_linear,
         "max_pixels": args.max_pixels,
+        "decode_srgb": args.decode_srgb,
     }
 
 

@@ -75,7 +75,8 @@ def find_data_file(relative: str, data_dir: str | os.PathLike | None = None) -> 
         f"external data file {relative!r} not found. Looked at: {looked}. "
         "Pass data_dir=... (or --data-dir on the command line) or set CCJAX_DATA to a directory "
         "laid out like the project's shared/data (sub-folders sfu_barnard/, "
-        "camera_ssf_jiang2013_camspec/, gehler_shi_groundtruth/)."
+        "camera_ssf_jiang2013_camspec/, gehler_shi_groundtruth/); the documentation's "
+        "'External data' page (docs/external-data.md) says where each file comes from and its format."
     )
 
 

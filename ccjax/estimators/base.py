@@ -416,8 +416,9 @@ def validate_input(model: AbstractEstimator, x, mask, *, name: str | None = None
 
     Arguments:
         model: a fitted estimator.
-        x: ``(P, 3)`` / ``(B, P, 3)`` for surface estimators, ``(H, W, 3)`` / ``(B, H, W, 3)`` for
-            image estimators.
+        x: one surface list ``(P, 3)`` for surface estimators (a 3-D array is refused: an image
+            ``(H, W, 3)`` and a batch ``(B, P, 3)`` look alike); ``(H, W, 3)`` / ``(B, H, W, 3)``
+            for image estimators.
         mask: ``None`` or booleans of shape ``x.shape[:-1]``.
         name: the argument's name in messages (default ``"rgb"`` for surface estimators,
             ``"image"`` for image estimators).
@@ -434,11 +435,15 @@ def validate_input(model: AbstractEstimator, x, mask, *, name: str | None = None
             f"(or a batch (B, H, W, 3)); got a surface list of shape {np.shape(x)}. Pass the image itself, "
             "or use a surface estimator for surface lists"
         )
-    if kind == "surfaces" and ndim == 4:
+    if kind == "surfaces" and ndim in (3, 4):
+        # An image (H, W, 3) has the shape of a batch of H surface lists: estimating it would give one
+        # light per image row, so the caller says which it is.
         raise ValueError(
-            f"{name}: {type(model).__name__} is a surface estimator and takes {SHAPES['surfaces']} "
-            f"(or a batch (B, P, 3)); got shape {np.shape(x)}, a batch of images. Images reach surface "
-            "estimators through the image pipeline (ccjax.preprocessing.estimate_image)"
+            f"{name}: {type(model).__name__} is a surface estimator and takes one surface list "
+            f"{SHAPES['surfaces']}; got shape {np.shape(x)}. For an image, estimate it as one scene "
+            "through the image pipeline (ccjax.preprocessing.estimate_image) or pass "
+            f"{name}.reshape(-1, 3) with mask.reshape(-1); for a batch of surface lists (B, P, 3) use "
+            "ccjax.estimate_batch(model, rgb, mask)"
         )
     if kind == "image":
         return validate_image(x, mask, name=name)

@@ -147,8 +147,35 @@ def lookup(label: str) -> tuple[Entry, re.Match]:
         match = entry.pattern.fullmatch(label)
         if match:
             return entry, match
-    known = ", ".join(entry.grammar for entry in _ENTRIES)
-    raise ValueError(f"method: unknown label {label!r}; known: {known}")
+    close = _close_labels(label)
+    hint = f"did you mean {' or '.join(close)}? " if close else ""
+    raise ValueError(
+        f"method: unknown label {label!r}; {hint}`ccjax methods` (ccjax.estimators.registry.available()) lists "
+        "every family's label grammar"
+    )
+
+
+def _spelling(name: str) -> str:
+    # Case, hyphens and spaces are how labels are most often mistyped ("Grey World", "greyworld").
+    return re.sub(r"[^0-9a-z]", "", name.lower())
+
+
+def _close_labels(label: str) -> list[str]:
+    """Up to three known labels spelled like ``label``: the families' fixed spellings and examples,
+    also found by their names in words ("grey world" gives GW); a parameterised family's
+    suggestion shows its grammar."""
+    import difflib
+
+    suggestions: dict[str, str] = {}
+    for entry in _ENTRIES:
+        words = re.split(r"[,(]", entry.description)[0].strip()
+        names = [*entry.grammar.split(" | "), entry.example, *([words] if len(words.split()) <= 3 else [])]
+        fixed = all(entry.pattern.fullmatch(name) for name in entry.grammar.split(" | "))
+        for name in names:
+            shown = repr(name if entry.pattern.fullmatch(name) else entry.example)
+            suggestions.setdefault(_spelling(name), shown if fixed else f"{shown} ({entry.grammar})")
+    close = difflib.get_close_matches(_spelling(label), list(suggestions), n=3, cutoff=0.75)
+    return list(dict.fromkeys(suggestions[name] for name in close))
 
 
 def fit(label: str, world: World, **options) -> AbstractEstimator:

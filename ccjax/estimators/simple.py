@@ -203,7 +203,7 @@ def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
 _FIXED_LABELS = (
     ("NOTHING", "NOTHING", "assume the canonical light (§4.5)", fit_nothing, False),
     ("AVE-ILLUM", "AVE-ILLUM", "mean of the training illuminants (§4.5)", fit_ave_illum, False),
-    ("GW", "GW", "grey world, 2 x mean RGB (§4.5.1)", fit_gw, True),
+    ("GW|gw", "GW | gw", "grey world, 2 x mean RGB (§4.5.1)", fit_gw, True),
     ("DB-GW", "DB-GW", "grey world with the database mean as grey (§4.5.1)", fit_db_gw, True),
     ("RETINEX|MAX-RGB|max-rgb", "RETINEX | MAX-RGB | max-rgb", "per-channel maximum (§4.5.2)", fit_retinex, False),
 )

@@ -56,6 +56,8 @@ class FolderEvaluation:
             when it was asked for or a method is world-based.
         failures: one failure record per image that could not be used, in path order.
         total: how many images the ground truth lists.
+        unlisted: the image files of the folder without a ground-truth row (not scored; only with
+            ``allow_missing``).
     """
 
     results: ImageResults
@@ -69,6 +71,7 @@ class FolderEvaluation:
     check: CurveCheck | None = None
     failures: list[str] = field(default_factory=list)
     total: int = 0
+    unlisted: list[str] = field(default_factory=list)
 
     def tables(self) -> str:
         """The statistics table (:meth:`ImageResults.table`), then per fold and pooled, then the
@@ -97,6 +100,7 @@ class FolderEvaluation:
             "summary": {label: results.summary(label) for label in results.estimates},
             "images": results.records(),
             "failures": list(self.failures),
+            "unlisted": list(self.unlisted),
         }
         check = self.check
         if check is not None:
@@ -346,6 +350,7 @@ def evaluate_folder(
     read_options: dict | None = None,
     masks: str | os.PathLike | None = None,
     check_camera: bool = False,
+    allow_missing: bool = False,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
     max_pixels: int | None = MAX_PIXELS,
@@ -376,6 +381,8 @@ def evaluate_folder(
         masks: a folder of masks named by the images' stems, or None.
         check_camera: compare the ground truth with the world's camera
             (:func:`ccjax.experiments.cameras.curve_check`) even when no method is world-based.
+        allow_missing: score the listed images when some image files of the folder have no
+            ground-truth row (named in :attr:`FolderEvaluation.unlisted`) instead of refusing.
         progress: progress bars on stderr.
         log: called with a line for each warning and training step (e.g. ``print`` to stderr).
         max_pixels: the pixel budget: a file whose header claims more pixels is refused (a
@@ -386,7 +393,8 @@ def evaluate_folder(
 
     Raises:
         ValueError: bad options (naming ``folds``, ``train``, ``epochs``, ``masks``), a bad ground
-            truth, or no usable image (every file's failure record).
+            truth, image files without a ground-truth row (each named; unless ``allow_missing``),
+            or no usable image (every file's failure record).
     """
     from ccjax import io, training
     from ccjax.runs import store
@@ -397,6 +405,14 @@ def evaluate_folder(
     train = list(train or [])
     table = io.read_ground_truth_file(ground_truth, with_folds=folds is not None)
     pairs = io.match_ground_truth(table.lights, directory)
+    unlisted = [str(file) for file in io.unlisted_images(pairs, directory)]
+    if unlisted and not allow_missing:
+        # A silently smaller set is a different benchmark: the caller decides.
+        raise ValueError(
+            f"ground_truth: {len(unlisted)} image(s) in {directory} have no row in {ground_truth}: "
+            f"{', '.join(unlisted)}; add their rows, or score the listed images only (allow_missing=True; "
+            "--allow-missing on the command line)"
+        )
     names = list(table.lights)
     assigned, fold_source = None, None
     if folds is not None:
@@ -482,4 +498,5 @@ def evaluate_folder(
         check=check,
         failures=failures,
         total=len(paths),
+        unlisted=unlisted,
     )

@@ -1,4 +1,5 @@
-"""Figures of the experiments: error versus number of surfaces, and a world's chromaticities.
+"""Figures of the experiments: error versus number of surfaces, a world's chromaticities, and the
+per-image errors of an image evaluation.
 
 matplotlib is imported inside each function (with the non-interactive Agg backend), so importing
 ccjax never needs it.
@@ -10,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ccjax.experiments.evaluation import ImageResults
 from ccjax.experiments.results import SweepResult
 from ccjax.io.files import write_figure
 from ccjax.world import World
@@ -32,6 +34,16 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def _finish(plt, fig, path, title: str) -> None:
+    """Title, lay out and write a figure (atomically, :func:`ccjax.io.files.write_figure`), then free it."""
+    fig.suptitle(title)
+    fig.tight_layout()
+    try:
+        write_figure(fig, path, dpi=120, bbox_inches="tight")
+    finally:
+        plt.close(fig)
 
 
 def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"), summary: str = "rms", title=None):
@@ -63,12 +75,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
         ax.grid(alpha=0.3)
     handles, names = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, names, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.suptitle(title or f"{result.n_scenes} scenes per point")
-    fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    _finish(plt, fig, path, title or f"{result.n_scenes} scenes per point")
 
 
 def plot_world(world: World, path) -> None:
@@ -103,3 +110,38 @@ def plot_world(world: World, path) -> None:
         write_figure(fig, path, dpi=110)
     finally:
         plt.close(fig)
+
+
+def plot_image_errors(results: ImageResults, path, title: str | None = None) -> None:
+    """Per-image angular errors of every method: their cumulative distribution (the share of
+    images within each error) and each image's error, images ordered by the first method's error;
+    estimates that fell back or relaxed (not ok) are drawn hollow.
+
+    Arguments:
+        results: an evaluation with ground truth (:class:`ccjax.experiments.evaluation.ImageResults`).
+        path: the image file to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
+        title: the figure title (default: the number of images).
+    """
+    plt = _pyplot()
+    methods = list(results.estimates)
+    errors = {method: results.angular(method) for method in methods}
+    order = np.argsort(errors[methods[0]], kind="stable") if methods else np.array([], int)
+    fig, (cumulative, each) = plt.subplots(1, 2, figsize=(12, 4.2))
+    share = np.arange(len(results.paths) + 1) / max(len(results.paths), 1)  # from 0 at no error
+    for index, method in enumerate(methods):
+        colour = f"C{index % 10}"
+        cumulative.step(np.r_[0.0, np.sort(errors[method])], share, where="post", color=colour, label=method)
+        ok = np.asarray(results.ok[method], bool)[order]
+        positions = np.arange(len(order))
+        values = errors[method][order]
+        each.plot(positions[ok], values[ok], "o", color=colour, markersize=4, label=method)
+        each.plot(positions[~ok], values[~ok], "o", markerfacecolor="none", color=colour, markersize=4)
+    cumulative.set_xlabel(STATISTIC_LABELS["angular"])
+    cumulative.set_ylabel("share of images with at most this error")
+    each.set_xlabel(f"image (ordered by {methods[0]}'s error)" if methods else "image")
+    each.set_ylabel(STATISTIC_LABELS["angular"])
+    each.xaxis.get_major_locator().set_params(integer=True)
+    for ax in (cumulative, each):
+        ax.grid(alpha=0.3)
+    cumulative.legend(fontsize=8, loc="lower right")
+    _finish(plt, fig, path, title or f"angular error over {len(results.paths)} images (hollow: fell back or relaxed)")

@@ -88,7 +88,9 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
     base.require_kind(model, "surfaces", f"methods: {label!r}")
 
 
-def resolve_methods(world: World, methods, counts: dict | None = None) -> list[tuple[str, AbstractEstimator]]:
+def resolve_methods(
+    world: World, methods, counts: dict | None = None, *, progress: bool = False
+) -> list[tuple[str, AbstractEstimator]]:
     """``(label, surface estimator)`` pairs from labels, estimators or pairs (labels are fitted
     through the store's cache of fits, :func:`ccjax.runs.store.fit_with_source`).
 
@@ -96,6 +98,8 @@ def resolve_methods(world: World, methods, counts: dict | None = None) -> list[t
         world: the world labels are fitted to.
         methods: labels, fitted surface estimators, or ``(label, estimator)`` pairs.
         counts: if given, ``"cached"`` and ``"fitted"`` are incremented per label.
+        progress: show a progress bar naming the method being fitted (fits of the gamut and
+            correlation families take seconds to minutes before any scene runs).
 
     Returns:
         The pairs, in order.
@@ -103,9 +107,13 @@ def resolve_methods(world: World, methods, counts: dict | None = None) -> list[t
     Raises:
         ValueError: an empty list, an unknown item or an image estimator.
     """
+    from tqdm.auto import tqdm
+
     resolved = []
-    for method in methods:
+    bar = tqdm(methods, desc="fit", unit="method", disable=not progress, leave=False)
+    for method in bar:
         if isinstance(method, str):
+            bar.set_postfix_str(method)
             model, hit = store.fit_with_source(method, world)
             if counts is not None:
                 name = "cached" if hit else "fitted"
@@ -182,7 +190,7 @@ def sweep(
         raise ValueError(f"n_surfaces: expected integers in [1, {n_reflectances}], got {list(n_surfaces)}")
     options = SceneOptions.resolve(specular, noise, clip, metallic, fluorescent)
     counts: dict[str, int] = {}
-    resolved = resolve_methods(world, methods, counts)
+    resolved = resolve_methods(world, methods, counts, progress=progress)
     key = jax.random.key(0) if key is None else key
     source = SyntheticSource(key, tuple(surfaces), n_scenes, options, metals, fluorescent_surfaces)
     run = run_synthetic(

@@ -14,11 +14,19 @@ from ccjax.io.ground_truth import (
     match_ground_truth,
     read_ground_truth,
     read_ground_truth_file,
+    unlisted_images,
     write_ground_truth,
 )
 from ccjax.io.outputs import path_key
 from ccjax.io.png import PngHeader, png_header, read_png, write_png
-from ccjax.io.preview import preview_matrix, preview_matrix_cached, srgb_preview, srgb_preview_rows, write_preview
+from ccjax.io.preview import (
+    encode_srgb,
+    preview_matrix,
+    preview_matrix_cached,
+    srgb_preview,
+    srgb_preview_rows,
+    write_preview,
+)
 from ccjax.io.reading import (
     CLIP_FRACTION,
     IMAGE_SUFFIXES,
@@ -40,6 +48,7 @@ __all__ = [
     "ImageInfo",
     "LinearImage",
     "PngHeader",
+    "encode_srgb",
     "list_images",
     "match_ground_truth",
     "path_key",
@@ -55,6 +64,7 @@ __all__ = [
     "read_png",
     "srgb_preview",
     "srgb_preview_rows",
+    "unlisted_images",
     "write_codes",
     "write_dataset",
     "write_figure",

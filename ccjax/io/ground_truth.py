@@ -212,3 +212,17 @@ def match_ground_truth(truth: dict[str, np.ndarray], directory: str | os.PathLik
     if missing:
         raise ValueError(f"ground truth: {len(missing)} image(s) not found in {directory}, e.g. {missing[:3]}")
     return pairs
+
+
+def unlisted_images(pairs: Iterable[tuple[Path, np.ndarray]], directory: str | os.PathLike) -> list[Path]:
+    """The image files of ``directory`` that no ground-truth row names.
+
+    Arguments:
+        pairs: :func:`match_ground_truth`'s ``(file, light)`` pairs.
+        directory: the image folder.
+
+    Returns:
+        The files, sorted (empty when every image has its row).
+    """
+    listed = {file.resolve() for file, _ in pairs}
+    return [file for file in list_images([directory]) if file.resolve() not in listed]

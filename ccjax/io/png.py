@@ -2,6 +2,11 @@
 
 16-bit RGB is what linear camera data needs, and Pillow (and so imageio) silently reduces it to
 8 bits; libpng keeps all 16 (big-endian in the file, native ``uint16`` in memory).
+
+The header and the chunk CRCs are read here, not by a library: imagecodecs has no header-only
+PNG call (``png_check`` tests the signature, ``png_decode`` decodes every pixel, which probing
+a folder before any work must not do), Pillow's lazy open hides the bit depth of 16-bit RGB
+(mode ``"RGB"``), and libpng only warns about a bad CRC in an ancillary chunk.
 """
 
 from __future__ import annotations

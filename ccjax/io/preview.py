@@ -17,10 +17,7 @@ from ccjax._cache import cached_arrays, content_key
 from ccjax.io.png import write_png
 from ccjax.io.writing import row_slices
 
-_XYZ_TO_SRGB = np.array(
-    [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
-)
-PREVIEW_METHOD = "lstsq-reflectances-d65-v1"
+PREVIEW_METHOD = "lstsq-reflectances-d65-v2"
 """Names the fit of :func:`preview_matrix` in its cache key: change it when the fit changes."""
 
 
@@ -49,7 +46,7 @@ def preview_matrix(world) -> np.ndarray:
     white_xyz = d65 @ xyz_curves
     camera, xyz = camera / white_camera.max(), xyz / white_xyz[1]
     matrix = np.linalg.lstsq(camera, xyz, rcond=None)[0].T  # xyz ~ matrix @ camera
-    srgb = _XYZ_TO_SRGB @ matrix
+    srgb = np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, np.float64) @ matrix
     # Scale rows so the canonical white lands exactly on (1, 1, 1) * its brightest channel.
     white = srgb @ (white_camera / white_camera.max())
     if not np.all(white > 0):
@@ -70,6 +67,25 @@ def preview_matrix_cached(world) -> np.ndarray:
     return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, {"world": world.name})["matrix"]
 
 
+def encode_srgb(linear: ArrayLike, bits: int = 8) -> np.ndarray:
+    """Linear sRGB as sRGB file codes: clipped to [0, 1], the IEC 61966-2-1 transfer curve
+    (colour-science's), ``bits`` per sample.
+
+    Arguments:
+        linear: ``(..., 3)`` linear sRGB (1 = full scale).
+        bits: 8 (``uint8``) or 16 (``uint16``).
+
+    Returns:
+        The codes.
+    """
+    import colour
+
+    if bits not in (8, 16):
+        raise ValueError(f"bits: expected 8 or 16, got {bits!r}")
+    encoded = colour.cctf_encoding(np.clip(np.asarray(linear, np.float32), 0.0, 1.0), function="sRGB")
+    return np.round(encoded * (2**bits - 1)).astype(np.uint8 if bits == 8 else np.uint16)
+
+
 def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: float = 99.0) -> np.ndarray:
     """8-bit sRGB rendering of a linear camera image.
 
@@ -79,7 +95,7 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
         percentile: exposure: this percentile of the brightest channel becomes 1.
 
     Returns:
-        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve).
+        ``(H, W, 3)`` ``uint8`` sRGB (:func:`encode_srgb`).
     """
     rgb = np.asarray(rgb)
     return srgb_preview_rows(lambda rows: rgb[rows], rgb.shape, matrix, percentile)
@@ -102,7 +118,7 @@ def srgb_preview_rows(
         percentile: exposure: this percentile of the brightest channel becomes 1.
 
     Returns:
-        ``(H, W, 3)`` ``uint8`` sRGB (IEC 61966-2-1 transfer curve).
+        ``(H, W, 3)`` ``uint8`` sRGB (:func:`encode_srgb`).
     """
     transform = (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
     pieces = row_slices(tuple(shape))
@@ -113,9 +129,7 @@ def srgb_preview_rows(
     del brightest
     encoded = np.empty(tuple(shape), np.uint8)
     for rows in pieces:
-        linear = np.clip((np.asarray(rows_of(rows), np.float32) @ transform) / scale, 0.0, 1.0)
-        curve = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
-        encoded[rows] = np.round(curve * 255)
+        encoded[rows] = encode_srgb((np.asarray(rows_of(rows), np.float32) @ transform) / scale, 8)
     return encoded
 
 

@@ -13,11 +13,15 @@ maximum; the field's protocol for linear photographs: a sensor's response flatte
 demosaicing and noise smear saturation, below the file's last code, so pixels at the maximum
 alone miss most clipped ones), or exactly the ``saturation`` value when the caller gives one (the
 caller then knows the level).
-8-bit files are refused unless ``assume_linear``: they are almost always gamma-encoded, and
-estimating on gamma-encoded data is silently wrong; so are PNGs whose ``sRGB`` or ``gAMA`` chunk
-declares a gamma-encoded tone curve (a ``gAMA`` of 1.0 declares linear data; an ``iCCP`` profile
-is not interpreted). A multi-page TIFF is refused rather than read as its first page, and a
-header claiming more than ``max_pixels`` pixels (default :data:`MAX_PIXELS`) before any decoding.
+8-bit files (JPEG always) are refused unless ``decode_srgb`` or ``assume_linear``: they are
+almost always gamma-encoded, and estimating on gamma-encoded data is silently wrong; so are PNGs
+whose ``sRGB`` or ``gAMA`` chunk declares a gamma-encoded tone curve, unless ``assume_linear`` (a
+``gAMA`` of 1.0 declares linear data; an ``iCCP`` profile is not interpreted).
+``decode_srgb`` undoes the sRGB transfer curve (IEC 61966-2-1, colour-science's) of every file
+but raw ones: the result is linear in the light, though not camera data (the camera's curves are
+mixed into sRGB primaries and the clipped highlights stay clipped). A multi-page TIFF is refused
+rather than read as its first page, and a header claiming more than ``max_pixels`` pixels
+(default :data:`MAX_PIXELS`) before any decoding.
 
 Alpha (RGBA PNG, RGB + extra-sample TIFF) is a mask: a pixel whose alpha is below full opacity
 (the format's maximum: 255, 65535, or 1.0 for float) is *transparent* and is marked in ``clipped``
@@ -41,7 +45,8 @@ import numpy as np
 from ccjax.io.png import png_encoding, png_header, read_png
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *RAW_SUFFIXES)
+JPEG_SUFFIXES = (".jpg", ".jpeg")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *JPEG_SUFFIXES, *RAW_SUFFIXES)
 
 CLIP_FRACTION = 0.98
 """Default clip level as a fraction of the saturation level (module docstring)."""
@@ -138,10 +143,31 @@ def _read_pixels(path: Path) -> np.ndarray:
         if pixels.ndim == 3 and pixels.shape[0] in (3, 4) and pixels.shape[2] not in (3, 4):
             pixels = np.moveaxis(pixels, 0, -1)  # planar (separate) configuration
         return pixels
+    if suffix in JPEG_SUFFIXES:
+        import imagecodecs
+
+        return np.asarray(imagecodecs.jpeg8_decode(path.read_bytes()))
     raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
 
 
-def _check_layout(path: Path, shape: tuple[int, ...], dtype: np.dtype, assume_linear: bool) -> int:
+def _jpeg_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape and sample type of a JPEG from its header: imagecodecs decodes JPEG only whole, and
+    Pillow's open reads the header alone (its modes of baseline JPEG are 8-bit)."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        if image.format != "JPEG":
+            raise ValueError(f"not a JPEG file ({image.format})")
+        width, height = image.size
+        channels = {"L": 1, "RGB": 3}.get(image.mode)
+    if channels is None:
+        raise ValueError(f"JPEG colour mode {image.mode} is not supported; expected RGB")
+    return (height, width) + ((channels,) if channels > 1 else ()), np.dtype(np.uint8)
+
+
+def _check_layout(
+    path: Path, shape: tuple[int, ...], dtype: np.dtype, assume_linear: bool, decode_srgb: bool = False
+) -> int:
     """Refuse what :func:`read_image` refuses before looking at pixel values; return the bit depth."""
     if len(shape) == 2 or (len(shape) == 3 and shape[2] < 3):
         raise ValueError(f"image: {path} is a greyscale image; colour constancy needs RGB")
@@ -149,10 +175,11 @@ def _check_layout(path: Path, shape: tuple[int, ...], dtype: np.dtype, assume_li
         raise ValueError(f"image: {path} has shape {shape}; expected (height, width, 3)")
     if shape[0] * shape[1] == 0:
         raise ValueError(f"image: {path} has no pixels (size {shape[0]}x{shape[1]})")
-    if dtype == np.uint8 and not assume_linear:
+    if dtype == np.uint8 and not (assume_linear or decode_srgb):
         raise ValueError(
             f"image: {path} is 8-bit; 8-bit files are almost always gamma-encoded (sRGB), not linear "
-            "camera data. Use a 16-bit linear file (or raw), or pass --assume-linear if it really is linear"
+            "camera data. Use a 16-bit linear file (or raw); pass --decode-srgb to decode it from sRGB "
+            "(JPEG and most 8-bit files), or --assume-linear if it really is linear"
         )
     if not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
         raise ValueError(f"image: {path} has unsupported sample type {dtype}")
@@ -171,6 +198,8 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
 
         with tifffile.TiffFile(path) as tif:
             return _tiff_layout(tif)
+    if suffix in JPEG_SUFFIXES:
+        return _jpeg_layout(path)
     if suffix in RAW_SUFFIXES:
         with _rawpy(path).imread(str(path)) as raw:
             sizes = raw.sizes
@@ -233,6 +262,7 @@ def probe_image(
     saturation: float | int | None = None,
     assume_linear: bool = False,
     max_pixels: int | None = MAX_PIXELS,
+    decode_srgb: bool = False,
 ) -> ImageInfo:
     """Check that :func:`read_image` can read a file, from its header alone (no pixel decoding).
 
@@ -243,7 +273,7 @@ def probe_image(
 
     Arguments:
         path: the file.
-        black_level, saturation, assume_linear, max_pixels: as :func:`read_image` (so a command
+        black_level, saturation, assume_linear, decode_srgb, max_pixels: as :func:`read_image` (so a command
             can pass the same options to both); the saturation level must lie above the black level.
 
     Returns:
@@ -263,12 +293,13 @@ def probe_image(
         raise ValueError(f"image: cannot read {path}: {error}") from None
     except Exception as error:  # a decoder's own exception types: report them the same way
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
-    bit_depth = _check_layout(path, shape, dtype, assume_linear)
+    bit_depth = _check_layout(path, shape, dtype, assume_linear, decode_srgb)
     check_pixels(path, shape[0], shape[1], max_pixels)
-    if suffix == ".png" and not assume_linear and (encoding := png_encoding(path)) is not None:
+    if suffix == ".png" and not (assume_linear or decode_srgb) and (encoding := png_encoding(path)) is not None:
         raise ValueError(
             f"image: {path} is tagged {encoding}: its codes are gamma-encoded, not linear camera data. Use a "
-            "linear file (or raw), or pass --assume-linear if it really is linear"
+            "linear file (or raw), pass --decode-srgb to undo the sRGB curve, or --assume-linear if it really "
+            "is linear"
         )
     if suffix in RAW_SUFFIXES:
         black_level, full_scale = 0.0, 65535.0  # LibRaw's scale (see read_image)
@@ -287,8 +318,10 @@ def read_image(
     saturation: float | int | None = None,
     assume_linear: bool = False,
     max_pixels: int | None = MAX_PIXELS,
+    decode_srgb: bool = False,
 ) -> LinearImage:
-    """Read a linear image (16-bit PNG, TIFF, or camera raw with the ``raw`` extra).
+    """Read a linear image (16-bit PNG, TIFF, or camera raw with the ``raw`` extra; with
+    ``decode_srgb`` also sRGB-encoded PNG, TIFF and JPEG files).
 
     Arguments:
         path: the file.
@@ -301,6 +334,9 @@ def read_image(
         assume_linear: accept 8-bit files as linear data (otherwise they are refused).
         max_pixels: the pixel budget: a file whose header claims more pixels is refused before
             its pixels are decoded (default :data:`MAX_PIXELS`, 100 MP; None: no limit).
+        decode_srgb: the file (not raw) is sRGB-encoded: its codes, divided by the format's
+            maximum, are decoded with the sRGB curve (module docstring); clipping is judged on the
+            codes as without it. 8-bit files and JPEG are accepted.
 
     Returns:
         A :class:`LinearImage`.
@@ -308,12 +344,17 @@ def read_image(
     Raises:
         FileNotFoundError: the file does not exist.
         ValueError: unreadable, not RGB, empty, over the pixel budget, 8-bit without
-            ``assume_linear``, or every pixel clipped; the message names the file.
+            ``assume_linear`` or ``decode_srgb``, or every pixel clipped; the message names the file.
     """
     path = Path(path)
     # The header first: nothing is decoded (or allocated) for a file it refuses.
     probe_image(
-        path, black_level=black_level, saturation=saturation, assume_linear=assume_linear, max_pixels=max_pixels
+        path,
+        black_level=black_level,
+        saturation=saturation,
+        assume_linear=assume_linear,
+        max_pixels=max_pixels,
+        decode_srgb=decode_srgb,
     )
     default_saturation = None
     try:
@@ -327,7 +368,7 @@ def read_image(
         raise ValueError(f"image: cannot read {path}: {error}") from None
     except Exception as error:  # a decoder's own exception types: report them the same way
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
-    bit_depth = _check_layout(path, pixels.shape, pixels.dtype, assume_linear)
+    bit_depth = _check_layout(path, pixels.shape, pixels.dtype, assume_linear, decode_srgb)
     full_scale = float(np.iinfo(pixels.dtype).max) if np.issubdtype(pixels.dtype, np.integer) else 1.0
     transparent = pixels[..., 3] < pixels.dtype.type(full_scale) if pixels.shape[2] == 4 else None
     pixels = pixels[..., :3]
@@ -359,6 +400,11 @@ def read_image(
     # One float32 copy, scaled in place: the file's codes and this copy are the only full-size arrays.
     rgb = pixels.astype(np.float32)
     del pixels
+    if decode_srgb and path.suffix.lower() not in RAW_SUFFIXES:
+        import colour
+
+        # Decoded on the format's scale (sRGB codes run from 0 to the maximum), before the levels.
+        rgb = (colour.cctf_decoding(rgb / np.float32(full_scale), function="sRGB") * full_scale).astype(np.float32)
     if black_level:
         rgb -= np.float32(black_level)
     np.maximum(rgb, 0.0, out=rgb)

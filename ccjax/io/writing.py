@@ -73,12 +73,12 @@ def write_linear(path: str | os.PathLike, rgb: ArrayLike, *, overwrite: bool = T
 
 
 def write_codes(path: str | os.PathLike, codes: np.ndarray, *, overwrite: bool = True) -> None:
-    """Write ``uint16`` file codes ``(H, W, 3)`` as a 16-bit PNG or TIFF (by suffix), atomically
-    (:func:`write_file`; a TIFF is streamed into its temporary file).
+    """Write file codes ``(H, W, 3)`` (``uint8`` or ``uint16``) as a PNG or TIFF (by suffix),
+    atomically (:func:`write_file`; a TIFF is streamed into its temporary file).
 
     Arguments:
         path: ``.png``, ``.tif`` or ``.tiff`` file.
-        codes: ``(H, W, 3)`` ``uint16`` (:func:`quantise`).
+        codes: ``(H, W, 3)`` ``uint8`` or ``uint16``.
         overwrite: replace a file already at ``path``.
 
     Returns:

@@ -263,6 +263,8 @@ def run_streams(
         for stream in streams:
             collected: dict[int, list[dict]] = {position: [] for position in stream.positions}
             if stream.positions:
+                # Until its programs are compiled a stream's first chunk waits: say so.
+                bar.set_postfix_str("compiling")
                 makers[stream.maker].result()
                 for index in range(stream.n_chunks):
                     batch = stream.make(index)
@@ -271,6 +273,7 @@ def run_streams(
                         collected[position].append(
                             placement.fetch(program(models[position], batch, stream.canonical_white))
                         )
+                    bar.set_postfix_str("", refresh=False)
                     bar.update()
             results.append(
                 {

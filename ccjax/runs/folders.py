@@ -145,9 +145,11 @@ def correct_folder(
     each: Callable[[int, Estimate, Path, Path], None] | None = None,
     max_pixels: int | None = MAX_PIXELS,
     overwrite: bool = True,
+    srgb: int | None = None,
 ) -> ImageRun:
     """Estimate each image's light and write it corrected to the canonical light (a diagonal map,
-    or a sharpened-diagonal one) as a linear 16-bit image and an 8-bit sRGB preview.
+    or a sharpened-diagonal one) as a linear 16-bit image (or, with ``srgb``, an sRGB one) and an
+    8-bit sRGB preview. Clipped pixels come out white (:func:`ccjax.correction.correct`).
 
     Every file is written atomically (a temporary name put in place,
     :func:`ccjax.io.outputs.put_in_place`); existing files are replaced unless ``overwrite`` is
@@ -168,6 +170,10 @@ def correct_folder(
         each: called after each image is written with ``(index in the source, estimate, output,
             preview)``.
         overwrite: replace files already at the outputs' names.
+        srgb: 8 or 16: write the output as sRGB with that many bits instead of linear camera RGB,
+            at full resolution and without the preview's exposure change (the world's
+            camera-to-sRGB matrix, :func:`ccjax.io.preview_matrix`, then the sRGB transfer
+            curve: the canonical white at full scale is sRGB white).
 
     Returns:
         The :class:`~ccjax.runs.images.ImageRun`.
@@ -188,6 +194,8 @@ def correct_folder(
         shown = [output.with_name(f"{output.stem}_preview.png") for output in written]
     if previews is not None:
         shown = [Path(preview) for preview in previews]
+    if srgb not in (None, 8, 16):
+        raise ValueError(f"srgb: expected 8 or 16 bits (or None for linear output), got {srgb!r}")
     if len(written) != len(source) or len(shown) != len(source):
         raise ValueError(
             f"outputs, previews: expected one each per image ({len(source)}), got {len(written)} and {len(shown)}"
@@ -199,13 +207,15 @@ def correct_folder(
         estimate = estimates[label]
 
         def corrected(rows: slice) -> np.ndarray:
-            return np.asarray(correction.correct(image.rgb[rows], estimate.illuminant, canonical, sharpening))
+            # Clipped pixels come out white (1.0 is the sensor's saturation on the unit scale).
+            return np.asarray(correction.correct(image.rgb[rows], estimate.illuminant, canonical, sharpening, 1.0))
 
         # Corrected a piece of rows at a time (twice: once for the file, once for the preview),
         # so no float copy of a camera-sized image is made beside the image itself.
-        codes = np.empty(image.rgb.shape, np.uint16)
+        codes = np.empty(image.rgb.shape, np.uint16 if srgb != 8 else np.uint8)
         for rows in row_slices(image.rgb.shape):
-            codes[rows] = io.quantise(corrected(rows))
+            piece = corrected(rows)
+            codes[rows] = io.quantise(piece) if srgb is None else io.encode_srgb(piece @ matrix.T, srgb)
         io.write_codes(written[index], codes, overwrite=overwrite)
         del codes
         try:

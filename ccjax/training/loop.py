@@ -248,7 +248,8 @@ def fit_to_examples(
     best_median = float(np.median(angular_errors(model, validation)))
     log.initial_median = best_median
     steps_per_epoch = len(examples) // batch
-    bar = tqdm(total=schedule.epochs * steps_per_epoch, desc="train", unit="step", disable=not progress)
+    # The bar counts epochs (what the schedule, early stopping and the held-out column are in).
+    bar = tqdm(total=schedule.epochs, desc="train", unit="epoch", disable=not progress)
     bar.set_postfix(heldout_median=f"{best_median:.3f}")
     stale = 0
     for epoch in range(schedule.epochs):
@@ -263,7 +264,6 @@ def fit_to_examples(
                 key_step = hosts.replicate(key_step, mesh)
             params, opt_state, loss = _step(params, static, opt_state, x, mask, illuminant, targets, key_step, schedule)
             epoch_losses.append(float(loss))
-            bar.update()
         # Trained on a mesh, the parameters come back as this process's copy (a model to use anywhere).
         current = eqx.combine(params if mesh is None else jax.tree.map(jnp.asarray, hosts.global_value(params)), static)
         errors = angular_errors(current, validation)
@@ -271,13 +271,15 @@ def fit_to_examples(
         log.train_loss.append(float(np.mean(epoch_losses)))
         log.heldout_median.append(median)
         log.heldout_mean.append(float(np.mean(errors)))
-        bar.set_postfix(loss=f"{log.train_loss[-1]:.3f}", heldout_median=f"{median:.3f}")
+        bar.set_postfix(loss=f"{log.train_loss[-1]:.3f}", heldout_median=f"{median:.3f}", refresh=False)
+        bar.update()
         if median < best_median:
             best, best_median, log.best_epoch, stale = current, median, epoch + 1, 0
         else:
             stale += 1
             if stale >= schedule.patience:
                 log.stopped_early = True
+                bar.set_postfix_str(f"stopped early (best epoch {log.best_epoch})", refresh=False)
                 break
     bar.close()
     log.seconds = time.perf_counter() - start
