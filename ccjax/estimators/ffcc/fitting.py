@@ -83,7 +83,12 @@ class Hyperparameters:
 
 @dataclass
 class TrainingRecord:
-    """What one fit did: the objective after each pass, and its wall seconds."""
+    """What one fit did.
+
+    Attributes:
+        losses: the objective after each L-BFGS pass.
+        seconds: the fit's wall-clock seconds.
+    """
 
     losses: list[float]
     seconds: float
@@ -115,14 +120,32 @@ def _latent_fft(latent: Float[Array, "... n n"], scale: Float[Array, "... n n"])
 
 
 def from_latent(latent: Float[Array, "... n n"], scale: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
-    """The map whose preconditioned variables are ``latent`` (``scale``: its :func:`preconditioner`)."""
+    """The map whose preconditioned variables are ``latent`` (FFCC §3.3's parametrisation).
+
+    Arguments:
+        latent: the preconditioned variables of one or more ``n x n`` maps.
+        scale: :func:`preconditioner` of the map's size and weights.
+
+    Returns:
+        The maps in the histogram's domain.
+    """
     return jnp.fft.irfft2(_latent_fft(latent, scale), s=latent.shape[-2:]).astype(latent.dtype)
 
 
 def histograms(
     model: FFCC, images: Float[Array, "N H W 3"], masks: Bool[Array, "N H W"], chunk: int = 256
 ) -> Float[Array, "N 2 n n"]:
-    """Every image's histogram on ``model``'s grid, computed in chunks (bounded memory)."""
+    """Every image's histogram on ``model``'s grid, computed in chunks (bounded memory).
+
+    Arguments:
+        model: the FFCC model whose grid and channels are used.
+        images: ``(N, H, W, 3)`` linear camera RGB.
+        masks: ``(N, H, W)`` usable pixels.
+        chunk: images per compiled call.
+
+    Returns:
+        ``(N, 2, n, n)`` pixel and edge histograms.
+    """
     parts = [
         _histograms(model, images[start : start + chunk], masks[start : start + chunk])
         for start in range(0, len(images), chunk)
@@ -138,7 +161,16 @@ def _histograms(model: FFCC, images: Float[Array, "N H W 3"], masks: Bool[Array,
 def fit_origin(truth_uv: Float[Array, "N 2"], bins: int, bin_size) -> Float[Array, "2"]:
     """The grid's origin that centres the training lights' log-chroma range on the histogram
     (on whole bins), so that the torus holds every training light (a choice made on the training
-    images only)."""
+    images only).
+
+    Arguments:
+        truth_uv: ``(N, 2)`` the training lights' log-chroma.
+        bins: the histogram's size ``n``.
+        bin_size: one bin's width in log-chroma units.
+
+    Returns:
+        ``(2,)`` the ``(u, v)`` of bin ``(0, 0)``.
+    """
     middle = 0.5 * (jnp.min(truth_uv, axis=0) + jnp.max(truth_uv, axis=0))
     return bin_size * jnp.round(middle / bin_size) - bin_size * (bins // 2)
 

@@ -49,7 +49,14 @@ def convolve(
 
 
 def uv_to_rgb(uv: Float[Array, "2"]) -> Float[Array, "3"]:
-    """The light ``(exp(-u), 1, exp(-v))`` of log-chroma ``uv``, normalised to sum 1."""
+    """The light of a log-chroma (FFCC §2: ``u = log(G / R)``, ``v = log(G / B)``).
+
+    Arguments:
+        uv: ``(2,)`` the log-chroma ``(u, v)``.
+
+    Returns:
+        ``(3,)`` ``(exp(-u), 1, exp(-v))`` normalised to sum 1.
+    """
     rgb = jnp.stack([jnp.exp(-uv[0]), jnp.ones_like(uv[0]), jnp.exp(-uv[1])])
     return rgb / jnp.sum(rgb)
 
