@@ -28,6 +28,7 @@ WORKER = Path(__file__).resolve().parent / "distributed_worker.py"
 ROLES = ("reference0", "mesh0", "process0", "process1")
 INIT_FAILED = 77  # the worker's exit status when jax.distributed cannot start here
 TOLERANCE = 1e-6
+GRADIENT_TOLERANCE = 3e-5
 
 
 def free_port() -> int:
@@ -101,14 +102,14 @@ def launch(root: Path) -> dict:
     }
 
 
-def assert_close(actual: np.ndarray, expected: np.ndarray, name: str) -> None:
+def assert_close(actual: np.ndarray, expected: np.ndarray, name: str, tolerance: float = TOLERANCE) -> None:
     assert actual.shape == expected.shape, (name, actual.shape, expected.shape)
     if expected.dtype.kind in "biu":
         assert np.array_equal(actual, expected), name
         return
     scale = max(float(np.max(np.abs(expected))), 1e-30)
     difference = float(np.max(np.abs(actual.astype(np.float64) - expected))) / scale
-    assert difference <= TOLERANCE, f"{name}: {difference:.2e} relative"
+    assert difference <= tolerance, f"{name}: {difference:.2e} relative"
 
 
 def test_two_processes_and_four_devices_agree_with_one(tmp_path):
@@ -173,5 +174,9 @@ def check_training(runs):
     for role in ("mesh0", "process0", "process1"):
         results = runs[role][0]
         assert int(results["train/best_epoch"]) == 1
-        for name in ("train/gradient", "train/params", "train/loss"):
+        # The pooled gradient is a float32 sum over the batch whose terms cancel; the sharded
+        # program adds them in another order, so it agrees to a few hundred float32 roundings of
+        # its largest entry, not to 1e-6 of it.
+        assert_close(results["train/gradient"], reference["train/gradient"], f"{role} gradient", GRADIENT_TOLERANCE)
+        for name in ("train/params", "train/loss"):
             assert_close(results[name], reference[name], f"{role} {name}")

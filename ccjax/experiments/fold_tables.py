@@ -4,9 +4,12 @@ report)."""
 
 from __future__ import annotations
 
+import typing
+
 import numpy as np
 
-from ccjax.experiments.evaluation import ImageResults
+if typing.TYPE_CHECKING:  # importing ccjax.experiments stays cheap: evaluation loads on use
+    from ccjax.experiments.evaluation import ImageResults
 
 __all__ = ["fold_table", "training_table"]
 

@@ -7,14 +7,17 @@ ccjax never needs it.
 
 from __future__ import annotations
 
+import typing
 from collections.abc import Sequence
 
 import numpy as np
 
-from ccjax.experiments.evaluation import ImageResults
 from ccjax.experiments.results import SweepResult
 from ccjax.io.files import write_figure
 from ccjax.world import World
+
+if typing.TYPE_CHECKING:  # importing ccjax.experiments stays cheap: evaluation loads on use
+    from ccjax.experiments.evaluation import ImageResults
 
 STATISTIC_LABELS = {
     "angular": "angular error (degrees)",
