@@ -71,6 +71,16 @@ def pytest_runtest_setup(item):
 
 
 def pytest_configure(config):
+    # A run started in the background of a non-interactive shell (`pytest &`, nohup) inherits
+    # SIGINT ignored, and an ignored signal stays ignored across exec: the commands the Ctrl-C
+    # tests start would never see the signal. Restore what a terminal user has (in the main
+    # thread only: Python allows signal handlers nowhere else).
+    import signal
+    import threading
+
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
     # Share compiled XLA programs between the xdist workers and between tests of one run: most of
     # the suite's time is compilation, and many tests compile the same sweep shapes.
     import tempfile
