@@ -38,7 +38,7 @@ from ccjax import cameras, losses
 from ccjax.camera import Camera
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch
-from ccjax.estimators.gamut.model import GamutMapping
+from ccjax.estimators.gamut import GamutMapping
 from ccjax.runs import store
 from ccjax.scenes import SceneTables, sample_batch, scene_keys
 from ccjax.world import World

@@ -19,7 +19,7 @@ from ccjax.estimators.base import (
     Estimate,
     Status,
 )
-from ccjax.estimators.gamut.engine import GridOptions
+from ccjax.estimators.gamut._engine import GridOptions
 from ccjax.experiments import sweeps
 from ccjax.runs import store, synthetic
 

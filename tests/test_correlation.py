@@ -121,7 +121,7 @@ def test_specular_brightness_matrix_matches_oracle(default_world, spectra):
 def test_fluorescent_chromaticity_matrix_matches_oracle(default_world, spectra):
     """FL training (§7.2, A20): the characterised fluorescent surfaces join the counts with a
     weight that makes them 15 % of the occurrences; the oracle adds them bin by bin."""
-    from ccjax.estimators.gamut.extensions import characterised_fluorescents
+    from ccjax.estimators.gamut._extensions import characterised_fluorescents
 
     few = slice(0, 3)
     world = dataclasses.replace(default_world, train_illuminants=default_world.train_illuminants[few])

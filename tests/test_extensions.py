@@ -15,8 +15,8 @@ import pytest
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from ccjax.estimators import gamut, registry
-from ccjax.estimators.gamut import extensions
-from ccjax.estimators.gamut.extensions import Extension
+from ccjax.estimators.gamut import _extensions
+from ccjax.estimators.gamut._extensions import Extension
 from ccjax.runs import store
 
 K = 8.0
@@ -89,7 +89,7 @@ def test_specular_gamuts_are_the_qhull_of_the_extended_points(default_world, ext
 
 
 def test_metallic_gamut_is_the_qhull_of_the_extended_points(default_world):
-    metals = extensions.default_metals()
+    metals = _extensions.default_metals()
     assert metals.shape == (3, 101)
     np.testing.assert_allclose(metals.mean(axis=1), 1.0, rtol=1e-6)  # unit mean (A10)
     for extension, diagonal in (("MET", False), ("MET-ND", True)):
@@ -124,8 +124,8 @@ def test_characterised_responses_are_balanced_by_the_approximated_lights_white(d
     grey = materials.FluorescentSurfaces(
         names=("grey",), reflectance=jax.numpy.full((1, 101), 0.7), emission=jax.numpy.zeros((1, 101, 101))
     )
-    blocks = extensions.light_blocks(
-        default_world, Extension.parse("FL"), fluorescent=extensions.default_fluorescent(default_world, grey)
+    blocks = _extensions.light_blocks(
+        default_world, Extension.parse("FL"), fluorescent=_extensions.default_fluorescent(default_world, grey)
     )
     white = np.asarray(default_world.canonical, np.float64) @ np.asarray(default_world.camera.sensors, np.float64)
     assert len(blocks) == 1 + len(default_world.train_illuminants)

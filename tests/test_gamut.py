@@ -20,7 +20,7 @@ from scipy.optimize import linprog
 from ccjax import metrics
 from ccjax.estimators import gamut, registry
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Status, estimate_batch
-from ccjax.estimators.gamut import constraints_3d, engine, relaxation
+from ccjax.estimators.gamut import _constraints_3d, _engine, _relaxation
 from ccjax.scenes import sample
 
 SELECTORS_E = ("MV", "AVE", "ICA", "SCWIA-12")
@@ -69,7 +69,7 @@ def reference(default_world):
     points = np.asarray(default_world.canonical_rgb, np.float64)
     return {
         None: oracle.hull_halfspaces(points),
-        "ND": oracle.hull_halfspaces(gamut.model.canonical_points(default_world, "ND")),
+        "ND": oracle.hull_halfspaces(gamut._model.canonical_points(default_world, "ND")),
         "white": np.asarray(default_world.canonical_white, np.float64),
         "polygon": oracle.illuminant_polygon(np.asarray(default_world.train_whites)),
         "cone": oracle.map_cone_halfspaces(
@@ -154,14 +154,14 @@ def test_nd_gamut_contains_every_white_balanced_training_gamut(default_world, mo
 def test_illuminant_cone_contains_training_whites_only(default_world):
     whites = np.asarray(default_world.train_whites, np.float64)
     planes = gamut.cone_planes(whites)
-    assert np.all(gamut.geometry.cone_violation(planes, whites) <= 1e-9)
+    assert np.all(gamut._geometry.cone_violation(planes, whites) <= 1e-9)
     outside = np.array([[1.0, 0.05, 0.05], [0.05, 1.0, 0.05], [0.05, 0.05, 1.0]])
-    assert np.all(gamut.geometry.cone_violation(planes, outside) > 0.05)
+    assert np.all(gamut._geometry.cone_violation(planes, outside) > 0.05)
     # Agrees with the oracle's (r,g) polygon test on random chromaticities.
     rng = np.random.default_rng(0)
     rg = rng.uniform(0.05, 0.6, (500, 2))
     rg = rg[rg.sum(axis=1) < 0.95]
-    inside_cone = gamut.geometry.cone_violation(planes, np.column_stack([rg, 1 - rg.sum(axis=1)])) <= 0
+    inside_cone = gamut._geometry.cone_violation(planes, np.column_stack([rg, 1 - rg.sum(axis=1)])) <= 0
     assert np.array_equal(inside_cone, oracle.in_polygon(oracle.illuminant_polygon(whites), rg))
 
 
@@ -170,14 +170,14 @@ def test_ray_extent_matches_linear_programs(default_world, models, reference):
     model = models[("CRULE", None)]
     scenes = sample(jax.random.key(3), default_world, 1, 6)
     rgb, mask = scenes.rgb[0], scenes.mask[0]
-    obs, _, _ = constraints_3d.observations(model, rgb, mask)
+    obs, _, _ = _constraints_3d.observations(model, rgb, mask)
     A, b = reference[None]
     Ad, bd = oracle.scene_constraints(A, b, np.asarray(rgb, np.float64))
     white = reference["white"]
     rg = np.random.default_rng(1).uniform(0.15, 0.45, (40, 2))
-    u, v, _ = engine.directions(jnp.asarray(rg, jnp.float32))
-    feasible = np.asarray(constraints_3d.surface_violation(v, obs)) <= 0
-    extent = 1.0 / np.asarray(constraints_3d.inverse_extent(v, obs), np.float64)
+    u, v, _ = _engine.directions(jnp.asarray(rg, jnp.float32))
+    feasible = np.asarray(_constraints_3d.surface_violation(v, obs)) <= 0
+    extent = 1.0 / np.asarray(_constraints_3d.inverse_extent(v, obs), np.float64)
     for i in range(len(rg)):
         m = white / np.asarray(u[i], np.float64)
         t_lp = linprog(-1.0, A_ub=(Ad @ m)[:, None], b_ub=bd, bounds=[(0, None)], method="highs").x[0]
@@ -306,7 +306,7 @@ def test_masked_slots_anywhere_are_never_read(default_world, models, run_all):
         e = np.asarray(out[name].illuminant)
         np.testing.assert_array_equal(e[0], e[1], err_msg=name)
         assert np.all(np.isfinite(e))
-    grid = jax.jit(jax.vmap(lambda r, m: constraints_3d.evaluate(model, r, m)))(batch, masks)
+    grid = jax.jit(jax.vmap(lambda r, m: _constraints_3d.evaluate(model, r, m)))(batch, masks)
     assert grid.count is not None
     np.testing.assert_array_equal(np.asarray(grid.count), [8, 8])
 
@@ -339,7 +339,7 @@ def test_relaxation_levels_are_zero_then_doubling():
     smallest violation is used, and beyond the last level (2.048, above any sine) there is no
     solution."""
     violation = jnp.array([-0.3, 0.0, 1e-5, 1e-3, 1.001e-3, 3e-3, 0.5, 1.0, 2.5])
-    level, failed = relaxation.relaxation_level(violation)
+    level, failed = _relaxation.relaxation_level(violation)
     np.testing.assert_allclose(np.asarray(level)[:8], [0.0, 0.0, 1e-3, 1e-3, 2e-3, 4e-3, 0.512, 1.024], rtol=1e-6)
     assert np.asarray(failed).tolist() == [False] * 8 + [True]
 
@@ -528,7 +528,7 @@ def test_scenes_scaled_by_1e_minus_12_and_1e6_give_the_same_answer(default_world
 
 def test_forms_argmax_is_numpys_first_argmax():
     """The observation reductions of large scenes are a running maximum over the observations
-    (``engine.forms_argmax``); against NumPy's ``argmax`` (first maximum) over the full
+    (``_engine.forms_argmax``); against NumPy's ``argmax`` (first maximum) over the full
     ``(observations, forms)`` score array, with unusable observations, exact ties (repeated
     observations) and an observation count that is not a multiple of the loop's step."""
     rng = np.random.default_rng(7)
@@ -538,7 +538,7 @@ def test_forms_argmax_is_numpys_first_argmax():
     origin = rng.normal(size=(12, 3)).astype(np.float32)
     squares = rng.uniform(0.5, 2.0, (4, 3)).astype(np.float32)  # 4 groups of 3 origin forms
     top = rng.normal(size=(30, 3)).astype(np.float32)
-    got = np.asarray(jax.jit(engine.forms_argmax)(q, usable, origin, squares, top))
+    got = np.asarray(jax.jit(_engine.forms_argmax)(q, usable, origin, squares, top))
     q64 = q.astype(np.float64)
     norms = np.repeat(np.sqrt((q64 * q64) @ squares.T.astype(np.float64)), 3, axis=1)
     origin_scores = (q64 @ origin.T.astype(np.float64)) / norms
@@ -549,7 +549,7 @@ def test_forms_argmax_is_numpys_first_argmax():
 
 def test_certified_forms_give_every_maximum_on_the_grid():
     """The fine stage's ``1/T`` reads only the top-facet forms a box bound cannot exclude
-    (``engine.binding_forms``): on a grid of directions with invalid ones, forms of which many are
+    (``_engine.binding_forms``): on a grid of directions with invalid ones, forms of which many are
     within a hair of each maximum, near-ties (forms nudged by 1e-6) and a count below the number
     of forms, the maximum over the kept forms is NumPy's float64 maximum over the first ``count``
     forms at every valid direction (to float32 rounding), and fewer forms are kept than given."""
@@ -557,20 +557,20 @@ def test_certified_forms_give_every_maximum_on_the_grid():
     n, tile = 24, 3
     r, g = np.meshgrid(np.linspace(0.2, 0.45, n), np.linspace(0.15, 0.4, n), indexing="ij")
     rg = jnp.asarray(np.stack([r.ravel(), g.ravel()], axis=1), jnp.float32)
-    _, v, valid = engine.directions(rg)
+    _, v, valid = _engine.directions(rg)
     valid = valid & jnp.asarray(rng.uniform(size=n * n) > 0.1)  # some directions not read
     # Unit vectors of directions across the grid: the support function of a sphere, so each
     # direction has its own nearby winner and many forms are within a hair of every maximum.
-    _, around, _ = engine.directions(jnp.asarray(rng.uniform([0.1, 0.1], [0.55, 0.5], (400, 2)), jnp.float32))
+    _, around, _ = _engine.directions(jnp.asarray(rng.uniform([0.1, 0.1], [0.55, 0.5], (400, 2)), jnp.float32))
     coef = np.asarray(around, np.float64) / np.linalg.norm(np.asarray(around, np.float64), axis=1, keepdims=True)
     coef[200:260] = coef[100:160] * (1 + 1e-6)  # near-ties
     coef = jnp.asarray(coef, jnp.float32)
     count = 350
 
     def pruned(v, valid, coef):
-        centre, half, occupied = engine.tile_boxes(v, valid, n, tile)
-        order, kept = engine.binding_forms(coef, jnp.int32(count), centre, half, occupied)
-        return engine.max_of_forms(v, coef[order], kept), kept
+        centre, half, occupied = _engine.tile_boxes(v, valid, n, tile)
+        order, kept = _engine.binding_forms(coef, jnp.int32(count), centre, half, occupied)
+        return _engine.max_of_forms(v, coef[order], kept), kept
 
     got, kept = jax.jit(pruned)(v, valid, coef)
     expected = (np.asarray(v, np.float64) @ np.asarray(coef, np.float64)[:count].T).max(axis=1)
@@ -588,9 +588,9 @@ def test_certified_inverse_extent_is_the_full_one_bitwise(default_world):
     options = model.options
 
     def both(rgb, mask):
-        grid = constraints_3d.evaluate(model, rgb, mask)
-        _, v, valid = engine.directions(grid.rg)
-        return constraints_3d.inverse_extent(v, grid.observations), grid.inverse_extent, valid
+        grid = _constraints_3d.evaluate(model, rgb, mask)
+        _, v, valid = _engine.directions(grid.rg)
+        return _constraints_3d.inverse_extent(v, grid.observations), grid.inverse_extent, valid
 
     full, certified, valid = map(np.asarray, jax.jit(jax.vmap(both))(scenes.rgb, scenes.mask))
     assert options.certificate_tile > 0 and options.fine_points % options.certificate_tile == 0
@@ -606,23 +606,23 @@ def test_leading_forms_loop_reads_only_what_it_is_told():
     v = jnp.asarray(rng.uniform(1.2, 6.0, (37, 3)), jnp.float32)
     coef = jnp.asarray(rng.normal(size=(4, 50, 3)), jnp.float32)
     counts = np.array([50, 17, 1, 0], np.int32)
-    got = np.asarray(jax.jit(jax.vmap(engine.max_of_forms, in_axes=(None, 0, 0)))(v, coef, counts))
+    got = np.asarray(jax.jit(jax.vmap(_engine.max_of_forms, in_axes=(None, 0, 0)))(v, coef, counts))
     values = np.einsum("gc,smc->sgm", np.asarray(v, np.float64), np.asarray(coef, np.float64))
     for scene, count in enumerate(counts):
         # A count below one step still reads the first step (FORMS_PER_STEP forms).
-        read = max(int(np.ceil(count / engine.FORMS_PER_STEP)), 1) * engine.FORMS_PER_STEP
+        read = max(int(np.ceil(count / _engine.FORMS_PER_STEP)), 1) * _engine.FORMS_PER_STEP
         np.testing.assert_allclose(got[scene], values[scene, :, :read].max(axis=1), rtol=1e-5)
     # Observations past the count never enter V_S, whatever their coefficients.
-    obs = constraints_3d.Observations(
+    obs = _constraints_3d.Observations(
         origin=jnp.asarray(rng.normal(size=(9, 10, 3)), jnp.float32),
         scale=jnp.asarray(rng.uniform(0.1, 1.0, (9, 3)), jnp.float32),
         top=jnp.asarray(rng.normal(size=(9, 5, 3)), jnp.float32),
     )
     for count in (9, 4, 1):
-        head = constraints_3d.Observations(origin=obs.origin[:count], scale=obs.scale[:count], top=obs.top[:count])
+        head = _constraints_3d.Observations(origin=obs.origin[:count], scale=obs.scale[:count], top=obs.top[:count])
         np.testing.assert_array_equal(
-            np.asarray(jax.jit(constraints_3d.surface_violation)(v, obs, jnp.int32(count))),
-            np.asarray(jax.jit(constraints_3d.surface_violation)(v, head)),
+            np.asarray(jax.jit(_constraints_3d.surface_violation)(v, obs, jnp.int32(count))),
+            np.asarray(jax.jit(_constraints_3d.surface_violation)(v, head)),
         )
         origin = np.asarray(head.origin, np.float64)
         scale = np.asarray(head.scale, np.float64)
@@ -631,7 +631,7 @@ def test_leading_forms_loop_reads_only_what_it_is_told():
             np.einsum("gc,pkc->gpk", v64, origin).max(axis=2) / np.sqrt(((v64[:, None] * scale) ** 2).sum(-1))
         ).max(1)
         np.testing.assert_allclose(
-            np.asarray(constraints_3d.surface_violation(v, obs, jnp.int32(count))), expected, rtol=1e-5
+            np.asarray(_constraints_3d.surface_violation(v, obs, jnp.int32(count))), expected, rtol=1e-5
         )
 
 
@@ -646,8 +646,8 @@ def test_relaxed_scenes_equal_the_unreduced_engine(default_world):
     run = _runner()
     for constraint in ("CRULE", "ECRULE"):
         pruned = gamut.fit(default_world, constraint=constraint)
-        full = gamut.fit(default_world, constraint=constraint, options=engine.GridOptions(exact_scene=10**6))
-        assert pruned.options == engine.GridOptions() and scenes.rgb.shape[1] > pruned.options.fine_observations
+        full = gamut.fit(default_world, constraint=constraint, options=_engine.GridOptions(exact_scene=10**6))
+        assert pruned.options == _engine.GridOptions() and scenes.rgb.shape[1] > pruned.options.fine_observations
         out_pruned, out_full = run(pruned, scenes.rgb, scenes.mask), run(full, scenes.rgb, scenes.mask)
         for name, estimate in out_full.items():
             relaxed = np.asarray(estimate.status) == Status.RELAXED
@@ -667,17 +667,17 @@ def test_relaxed_scenes_equal_the_unreduced_engine(default_world):
 
 @pytest.mark.parametrize("n_surfaces", [8, 32, 64])
 def test_mv_box_forms_keep_every_maximum_in_the_box(default_world, models, n_surfaces):
-    """MV's objective reads, inside a box around its start, only `mv.box_forms`' forms: at
+    """MV's objective reads, inside a box around its start, only `_mv.box_forms`' forms: at
     random valid directions of the box, their maximum is the maximum over every top-facet form
     (NumPy, float64, the same forms), and the certificate drops most forms (it is not a no-op)."""
-    from ccjax.estimators.gamut import mv
+    from ccjax.estimators.gamut import _mv
 
     model = models[("ECRULE", "ND")]
     rgb, mask = _scene(default_world, 41 + n_surfaces, n_surfaces)
-    grid = constraints_3d.evaluate(model, jnp.asarray(rgb), jnp.asarray(mask))
+    grid = _constraints_3d.evaluate(model, jnp.asarray(rgb), jnp.asarray(mask))
     centre = np.asarray(grid.rg)[np.argmin(np.asarray(grid.surface))]
     lo, hi = centre - 4 * np.asarray(grid.step), centre + 4 * np.asarray(grid.step)
-    order, kept = mv.box_forms(grid.observations, grid.count, jnp.asarray(lo), jnp.asarray(hi))
+    order, kept = _mv.box_forms(grid.observations, grid.count, jnp.asarray(lo), jnp.asarray(hi))
     forms = np.asarray(grid.observations.top, np.float64).reshape(-1, 3)
     if grid.count is not None:
         forms = forms.reshape(-1, model.top_normals.shape[0], 3)[: int(grid.count)].reshape(-1, 3)
@@ -685,5 +685,5 @@ def test_mv_box_forms_keep_every_maximum_in_the_box(default_world, models, n_sur
     assert 0 < int(kept) < 0.5 * forms.shape[0]
     rg = np.random.default_rng(0).uniform(lo, hi, size=(2000, 2))
     u = np.concatenate([rg, 1 - rg.sum(axis=1, keepdims=True)], axis=1)
-    v = 1 / u[np.all(u > engine.EDGE, axis=1)]
+    v = 1 / u[np.all(u > _engine.EDGE, axis=1)]
     np.testing.assert_array_equal((v @ near.T).max(axis=1), (v @ forms.T).max(axis=1))

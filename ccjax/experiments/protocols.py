@@ -350,7 +350,7 @@ def characterisation_notes(world: World) -> list[str]:
     """The fluorescent characterisation's prediction error per surface (§7.1, reported with
     Table 7.2): NNLS from the measurement lights, predicted under the world's test lights."""
     from ccjax import materials
-    from ccjax.estimators.gamut.extensions import MEASUREMENT_LIGHTS, characterised_fluorescents
+    from ccjax.estimators.gamut import MEASUREMENT_LIGHTS, characterised_fluorescents
 
     surfaces = materials.synthetic_fluorescent_surfaces()
     error = materials.prediction_error(

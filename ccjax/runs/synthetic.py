@@ -50,7 +50,7 @@ class SyntheticSource:
         fluorescent_surfaces: the :class:`~ccjax.scenes.RadianceModel` of the fluorescent
             surfaces (default: their characterisation from the world's lights, as the thesis
             rendered its synthetic fluorescent scenes, §7.3:
-            :func:`ccjax.estimators.gamut.extensions.characterised_fluorescents`).
+            :func:`ccjax.estimators.gamut.characterised_fluorescents`).
     """
 
     key: jax.Array
@@ -153,7 +153,7 @@ def scene_tables(
     fluorescent = None
     if options.fluorescent is not None:
         if fluorescent_surfaces is None:
-            from ccjax.estimators.gamut.extensions import characterised_fluorescents
+            from ccjax.estimators.gamut import characterised_fluorescents
 
             fluorescent_surfaces = characterised_fluorescents(world)
         fluorescent = fluorescent_surfaces

@@ -25,7 +25,7 @@ def training_responses(
 
     Uniform statistics over surfaces and illuminants (§4.5.4, §10.2). With ``fluorescent`` (a
     fraction in (0, 1)), the characterised fluorescent surfaces
-    (:func:`ccjax.estimators.gamut.extensions.characterised_fluorescents`) join the reflectances,
+    (:func:`ccjax.estimators.gamut.characterised_fluorescents`) join the reflectances,
     weighted so that they are that fraction of all occurrences (FL training, §7.2, §10.2: "about
     15 %"). With ``specular``, each surface also appears with ``s`` times the perfect white
     added, ``s`` at the midpoints of 8 equal steps of ``[0, max_amount]``; the matte copy has
@@ -50,7 +50,7 @@ def training_responses(
     weights = np.ones(rgb.shape[1])
     if fluorescent is not None:
         from ccjax import materials
-        from ccjax.estimators.gamut.extensions import characterised_fluorescents
+        from ccjax.estimators.gamut import characterised_fluorescents
 
         radiance = np.asarray(characterised_fluorescents(world).radiance(lights), np.float64)  # (I, F, 101)
         share = materials.fluorescent_weights(len(reflectances), radiance.shape[1], fraction=fluorescent)

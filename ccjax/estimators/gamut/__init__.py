@@ -5,18 +5,19 @@ as in ch. 9), computed by illuminant-direction integration.
 Registered labels: ``[ND-](CRULE|ECRULE)-(MV|AVE|SCWIA-N)``, ``[ND-]ECRULE-ICA``, and the
 differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``, ``margin``);
 ``(SP|MET)[k]-[ND-|FL-]BASE-SELECTOR`` and ``FL-BASE-SELECTOR`` (``k``: the specular multiplier,
-8 by default; :mod:`.extensions`).
+8 by default; :mod:`._extensions`).
 """
 
-from ccjax.estimators.gamut.constraints_3d import Grid, evaluate
-from ccjax.estimators.gamut.engine import GridOptions
-from ccjax.estimators.gamut.extensions import Extension
-from ccjax.estimators.gamut.geometry import Facets, cone_planes, gamut_facets, nd_points
-from ccjax.estimators.gamut.model import GamutMapping, GamutModel, estimate_all, fit
-from ccjax.estimators.gamut.selectors import select
-from ccjax.estimators.gamut.soft import SoftGamutMapping
+from ccjax.estimators.gamut._constraints_3d import Grid, evaluate
+from ccjax.estimators.gamut._engine import GridOptions
+from ccjax.estimators.gamut._extensions import MEASUREMENT_LIGHTS, Extension, characterised_fluorescents
+from ccjax.estimators.gamut._geometry import Facets, cone_planes, gamut_facets, nd_points
+from ccjax.estimators.gamut._model import GamutMapping, GamutModel, estimate_all, fit
+from ccjax.estimators.gamut._selectors import select
+from ccjax.estimators.gamut._soft import SoftGamutMapping
 
 __all__ = [
+    "MEASUREMENT_LIGHTS",
     "Extension",
     "Facets",
     "GamutMapping",
@@ -24,6 +25,7 @@ __all__ = [
     "Grid",
     "GridOptions",
     "SoftGamutMapping",
+    "characterised_fluorescents",
     "cip",
     "cone_planes",
     "estimate_all",

@@ -7,7 +7,7 @@ Barnard 1995; Finlayson & Hordley 1998).
 A candidate illuminant direction is its chromaticity ``u = (r, g, 1-r-g)``; its 3-D map direction
 is ``m(u) = w_C / u`` and its 2-D map ``D(u) = (m1/m3, m2/m3) = (k1 b / r, k2 b / g)`` with
 ``k = (w1/w3, w2/w3)``. The constraints are masks on ``u``
-(:mod:`~ccjax.estimators.gamut.constraints_cip`); the selectors, weights derived by the change of
+(:mod:`~ccjax.estimators.gamut._constraints_cip`); the selectors, weights derived by the change of
 variables from ``(r, g)``:
 
 * **MV** maximises the 2-D map area ``D1 D2 = k1 k2 b^2 / (r g)``, refined below the grid step by
@@ -36,10 +36,10 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import TINY, rg_numpy
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
-from ccjax.estimators.gamut import constraints_cip, geometry
-from ccjax.estimators.gamut.engine import GridOptions, directions, locate, pattern_search, square_grid
-from ccjax.estimators.gamut.relaxation import relaxation_level
-from ccjax.estimators.gamut.selectors import finish
+from ccjax.estimators.gamut import _constraints_cip, _geometry
+from ccjax.estimators.gamut._engine import GridOptions, directions, locate, pattern_search, square_grid
+from ccjax.estimators.gamut._relaxation import relaxation_level
+from ccjax.estimators.gamut._selectors import finish
 from ccjax.estimators.registry import register
 from ccjax.world import World
 
@@ -101,9 +101,9 @@ class CIP(AbstractSurfaceEstimator):
         self, rg: Float[Array, "G 2"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]
     ) -> Float[Array, " G"]:
         """The constraint set's per-direction violation (``<= 0`` where feasible); see
-        :func:`~ccjax.estimators.gamut.constraints_cip.violation`."""
+        :func:`~ccjax.estimators.gamut._constraints_cip.violation`."""
         dtype = rgb.dtype
-        return constraints_cip.violation(
+        return _constraints_cip.violation(
             self.white.astype(dtype),
             self.surface_facets.astype(dtype),
             self.illuminant_facets.astype(dtype),
@@ -138,7 +138,7 @@ class CIP(AbstractSurfaceEstimator):
             best = rg[jnp.argmax(jnp.where(feasible, _log_area(u), -jnp.inf))]
             direction = directions(pattern_search(objective, best, step / 2, options.refine_steps)[None])[0][0]
         else:
-            direction = self._average(u.T, constraints_cip.coverage(v - level, options.fine_points))
+            direction = self._average(u.T, _constraints_cip.coverage(v - level, options.fine_points))
         return finish(direction, jnp.any(valid), ~failed & jnp.any(feasible), level, self.fallback.astype(rgb.dtype))
 
     def _average(self, u, coverage) -> Float[Array, "3"]:
@@ -225,11 +225,11 @@ def fit(
     if canonical.shape[0] < 3 or train.shape[0] < 3:
         raise ValueError("world: needs at least 3 reflectances with B > 0 and 3 training illuminants")
     if illumination == "exact":
-        illuminant_facets = geometry.cone_planes(train)
+        illuminant_facets = _geometry.cone_planes(train)
         domain = _domain(rg_numpy(train))
     else:
-        illuminant_facets = geometry.cone_planes(white / train)
-        domain = _domain(geometry.map_cone_chromaticities(white, train))
+        illuminant_facets = _geometry.cone_planes(white / train)
+        domain = _domain(_geometry.map_cone_chromaticities(white, train))
     options = GridOptions(
         locate_points=coarse,
         locate_iterations=1,
@@ -242,7 +242,7 @@ def fit(
     as32 = lambda x: jnp.asarray(x, dtype=jnp.float32)
     return CIP(
         white=as32(white),
-        surface_facets=as32(geometry.cone_planes(canonical)),
+        surface_facets=as32(_geometry.cone_planes(canonical)),
         illuminant_facets=as32(illuminant_facets),
         domain=as32(domain),
         fallback=as32(train.mean(axis=0)),

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ccjax.estimators.gamut import geometry
+from ccjax.estimators.gamut import _geometry
 from ccjax.world import World
 
 SPECULAR_MULTIPLIER = 8.0
@@ -171,7 +171,7 @@ def points(
     """The points whose hull with the origin is the (extended) canonical gamut.
 
     The database part is the canonical RGBs (no diagonal extension) or ND's white-balanced
-    per-illuminant database gamuts (:func:`~ccjax.estimators.gamut.geometry.nd_points`, §6.1); the
+    per-illuminant database gamuts (:func:`~ccjax.estimators.gamut._geometry.nd_points`, §6.1); the
     extensions' points (:func:`light_blocks`) are appended.
 
     Returns:
@@ -181,7 +181,7 @@ def points(
     if extension.diagonal is None:
         base = np.asarray(world.canonical_rgb, np.float64)
     else:
-        base = geometry.nd_points(
+        base = _geometry.nd_points(
             np.asarray(world.reflectances),
             np.asarray(world.camera.sensors),
             np.asarray(world.train_illuminants),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ccjax.estimators.gamut.weights import normalised
+from ccjax.estimators.gamut._weights import normalised
 
 
 def estimate(

@@ -18,7 +18,7 @@ direction is its chromaticity
 
 Stages, all with fixed shapes so the kernel jits and vmaps:
 
-1. *locate* (:func:`~ccjax.estimators.gamut.engine.locate`) on the region violation, from the
+1. *locate* (:func:`~ccjax.estimators.gamut._engine.locate`) on the region violation, from the
    model's domain of directions;
 2. *fine*: ``T`` and the violations on a ``fine_points x fine_points`` grid over that box. ``1/T``
    reads, in each block of ``certificate_tile`` directions, only the forms a bound over the block
@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax.estimators.gamut.engine import (
+from ccjax.estimators.gamut._engine import (
     OUTSIDE,
     GridOptions,
     binding_forms,
@@ -185,7 +185,7 @@ def certified_inverse_extent(
     options: GridOptions,
 ) -> Float[Array, " G"]:
     """:func:`inverse_extent` on the fine grid, reading only the top-facet forms that can bind in
-    some block of ``options.certificate_tile`` directions (:func:`~ccjax.estimators.gamut.engine.binding_forms`).
+    some block of ``options.certificate_tile`` directions (:func:`~ccjax.estimators.gamut._engine.binding_forms`).
 
     At every valid direction the same form reaches the maximum, so the value is the same,
     bitwise; at invalid directions (which no selector reads) it may be smaller."""

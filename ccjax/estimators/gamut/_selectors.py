@@ -1,6 +1,6 @@
 """Solution selection from the fine direction grid: the masks, and dispatch to the selector modules
-(:mod:`~ccjax.estimators.gamut.mv`, :mod:`~ccjax.estimators.gamut.average`,
-:mod:`~ccjax.estimators.gamut.scwia`) (Barnard 1999 §4.5.3, §6.2).
+(:mod:`~ccjax.estimators.gamut._mv`, :mod:`~ccjax.estimators.gamut._average`,
+:mod:`~ccjax.estimators.gamut._scwia`) (Barnard 1999 §4.5.3, §6.2).
 
 Every selector reads the same per-direction quantities (``T(u)`` and the violations) and
 differs only in the mask and the weights:
@@ -27,11 +27,11 @@ from jaxtyping import Array
 
 from ccjax._colour import TINY
 from ccjax.estimators.base import Estimate
-from ccjax.estimators.gamut import average, mv, scwia
-from ccjax.estimators.gamut.constraints_3d import Grid
-from ccjax.estimators.gamut.engine import OUTSIDE, directions
-from ccjax.estimators.gamut.relaxation import relaxation_level, status_of
-from ccjax.estimators.gamut.weights import hard_mask
+from ccjax.estimators.gamut import _average, _mv, _scwia
+from ccjax.estimators.gamut._constraints_3d import Grid
+from ccjax.estimators.gamut._engine import OUTSIDE, directions
+from ccjax.estimators.gamut._relaxation import relaxation_level, status_of
+from ccjax.estimators.gamut._weights import hard_mask
 
 SELECTORS = ("MV", "AVE", "ICA", "SCWIA")
 
@@ -50,7 +50,7 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
 
     Arguments:
         model: the fitted :class:`~ccjax.estimators.gamut.GamutModel`.
-        grid: from :func:`~ccjax.estimators.gamut.constraints_3d.evaluate`.
+        grid: from :func:`~ccjax.estimators.gamut._constraints_3d.evaluate`.
         selector: ``"MV"``, ``"AVE"``, ``"ICA"`` (ECRULE) or ``"SCWIA"``.
         power: SCWIA's ``N``.
 
@@ -71,13 +71,13 @@ def select(model, grid: Grid, selector: str, power: float = 12.0) -> Estimate:
 
     log_mask = hard_mask(feasible)
     if selector == "MV":
-        illuminant = mv.hard(
+        illuminant = _mv.hard(
             model, grid, functools.partial(mask_violation, model.constraint, selector), level, feasible, log_t
         )
     elif selector in ("AVE", "ICA"):
-        illuminant = average.estimate(u, v, log_t, white, log_mask)
+        illuminant = _average.estimate(u, v, log_t, white, log_mask)
     elif selector == "SCWIA":
-        illuminant = scwia.estimate(u, log_t, jnp.where(bounded, grid.inverse_extent, 0.0), white, power, log_mask)
+        illuminant = _scwia.estimate(u, log_t, jnp.where(bounded, grid.inverse_extent, 0.0), white, power, log_mask)
     else:
         raise ValueError(f"selector: expected one of {SELECTORS}, got {selector!r}")
 
@@ -93,7 +93,7 @@ def finish(illuminant, usable, found, level, fallback, scale: Array | float = 1.
     Arguments:
         illuminant: the selector's answer in the units of observations divided by ``scale``
             (so the positivity test is relative to the scene, not an absolute threshold).
-        scale: the scene's scale (:func:`~ccjax.estimators.gamut.constraints_3d.evaluate`).
+        scale: the scene's scale (:func:`~ccjax.estimators.gamut._constraints_3d.evaluate`).
     """
     found = found & usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > TINY)
     return Estimate(

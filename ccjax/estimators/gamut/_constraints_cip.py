@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import TINY
-from ccjax.estimators.gamut.engine import OUTSIDE, directions
+from ccjax.estimators.gamut._engine import OUTSIDE, directions
 
 
 def _max_of_dots(x: Float[Array, "3 G"], vectors: Float[Array, "K 3"]) -> Float[Array, " G"]:

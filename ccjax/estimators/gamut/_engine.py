@@ -13,7 +13,7 @@ what every family shares:
 * the cones through the origin (:func:`cone_violation`), for illumination constraints;
 * the pattern search that refines MV below the grid step (:func:`pattern_search`).
 
-The relaxation ladder is :mod:`ccjax.estimators.gamut.relaxation`.
+The relaxation ladder is :mod:`ccjax.estimators.gamut._relaxation`.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax.estimators.gamut import relaxation
-from ccjax.estimators.gamut.relaxation import relaxation_level
+from ccjax.estimators.gamut import _relaxation
+from ccjax.estimators.gamut._relaxation import relaxation_level
 
 # Directions closer than this to the edge of the chromaticity triangle are never evaluated.
 EDGE = 1e-4
@@ -93,8 +93,8 @@ class GridOptions:
     reduction_samples: int = 5
     certificate_tile: int = 9
     exact_scene: int = 0
-    first_level: float = relaxation.FIRST_LEVEL
-    levels: int = relaxation.LEVELS
+    first_level: float = _relaxation.FIRST_LEVEL
+    levels: int = _relaxation.LEVELS
 
     def budgets(self) -> tuple[int, ...]:
         """The observation counts at which the engine takes another Python branch (sorted, the
@@ -344,7 +344,7 @@ def dot_minor(xt: Float[Array, "3 G"], coef: Float[Array, "M 3"]) -> Float[Array
 
 def cone_violation(x: Float[Array, "G 3"], planes: Float[Array, "L 3"]) -> Float[Array, " G"]:
     """``max_l n_l . x / |x|`` for a cone through the origin given by unit face normals ``n_l``
-    (:func:`~ccjax.estimators.gamut.geometry.cone_planes`): ``<= 0`` inside, else the sine of the
+    (:func:`~ccjax.estimators.gamut._geometry.cone_planes`): ``<= 0`` inside, else the sine of the
     angle outside it."""
     # Directions minor (L, G): a (G, 3) layout strides over the RGB axis for only L ~ 12 planes
     # (2.8x slower in isolation; about equal inside the full kernel), and a K=3 matmul is slower.

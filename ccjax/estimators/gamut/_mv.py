@@ -10,9 +10,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax.estimators.gamut.constraints_3d import Grid, Observations, inverse_extent, violations
-from ccjax.estimators.gamut.engine import CERTIFICATE_SLACK, EDGE, directions, leading, max_of_forms, pattern_search
-from ccjax.estimators.gamut.weights import log_volume, normalised
+from ccjax.estimators.gamut._constraints_3d import Grid, Observations, inverse_extent, violations
+from ccjax.estimators.gamut._engine import CERTIFICATE_SLACK, EDGE, directions, leading, max_of_forms, pattern_search
+from ccjax.estimators.gamut._weights import log_volume, normalised
 from ccjax.precision import matmul
 
 # The pattern search evaluates its candidates in a box of this many fine-grid steps around its
@@ -68,7 +68,7 @@ def box_forms(
     ``f`` is dropped when it is certainly below another there: below the largest lower bound
     ``max_g (g . c - |g| . h)`` even at its own upper bound ``f . c + |f| . h``, or, among its
     observation's forms, below the one largest at ``c`` by ``(f - f*) . c + |f - f*| . h < 0``
-    (each with :data:`~ccjax.estimators.gamut.engine.CERTIFICATE_SLACK` for rounding). The form
+    (each with :data:`~ccjax.estimators.gamut._engine.CERTIFICATE_SLACK` for rounding). The form
     reaching the maximum anywhere in the box passes both tests.
 
     Returns:

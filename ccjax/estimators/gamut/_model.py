@@ -5,7 +5,7 @@ its extension: ND, FL, SP, MET and their combinations, :mod:`.extensions`) as fi
 arrays, the cone of the training illuminants (ECRULE's illumination constraint) and the cone of
 their map directions (its convex approximation), and the domain of illuminant directions the
 locating stage starts from. The per-scene work is
-:func:`~ccjax.estimators.gamut.constraints_3d.evaluate` followed by a selector.
+:func:`~ccjax.estimators.gamut._constraints_3d.evaluate` followed by a selector.
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ from jaxtyping import Array, Bool, Float
 from ccjax._colour import rg_numpy
 from ccjax.backends import block_scenes
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
-from ccjax.estimators.gamut import extensions, geometry
-from ccjax.estimators.gamut.constraints_3d import COUNTED_SLOTS, evaluate
-from ccjax.estimators.gamut.engine import GridOptions
-from ccjax.estimators.gamut.selectors import SELECTORS, select
+from ccjax.estimators.gamut import _extensions, _geometry
+from ccjax.estimators.gamut._constraints_3d import COUNTED_SLOTS, evaluate
+from ccjax.estimators.gamut._engine import GridOptions
+from ccjax.estimators.gamut._selectors import SELECTORS, select
 from ccjax.world import World
 
 CONSTRAINTS = ("CRULE", "ECRULE")
@@ -65,30 +65,30 @@ class GamutModel(eqx.Module):
 
 def canonical_points(
     world: World,
-    extension: extensions.Extension | str | tuple | None,
+    extension: _extensions.Extension | str | tuple | None,
     *,
     metals: np.ndarray | None = None,
-    fluorescent: extensions.FluorescentResponses | None = None,
+    fluorescent: _extensions.FluorescentResponses | None = None,
 ) -> np.ndarray:
     """The points whose hull (with the origin) is the canonical gamut: the database under the
     canonical light, for ND/FL also every training illuminant's white-balanced database (§6.1),
-    plus the FL/SP/MET points (:func:`ccjax.estimators.gamut.extensions.points`)."""
-    extension = extensions.Extension.parse(extension)
+    plus the FL/SP/MET points (:func:`ccjax.estimators.gamut._extensions.points`)."""
+    extension = _extensions.Extension.parse(extension)
     if extension.specular == "MET" and metals is None:
-        metals = extensions.default_metals()
+        metals = _extensions.default_metals()
     if extension.diagonal == "FL" and fluorescent is None:
-        fluorescent = extensions.default_fluorescent(world)
-    return extensions.points(world, extension, metals=metals, fluorescent=fluorescent)
+        fluorescent = _extensions.default_fluorescent(world)
+    return _extensions.points(world, extension, metals=metals, fluorescent=fluorescent)
 
 
 def fit(
     world: World,
     *,
     constraint: str = "ECRULE",
-    extension: extensions.Extension | str | tuple | None = None,
+    extension: _extensions.Extension | str | tuple | None = None,
     options: GridOptions | None = None,
     metals: np.ndarray | None = None,
-    fluorescent: extensions.FluorescentResponses | None = None,
+    fluorescent: _extensions.FluorescentResponses | None = None,
 ) -> GamutModel:
     """Fit a gamut-mapping model to a world.
 
@@ -100,7 +100,7 @@ def fit(
             §6.1); ``"FL"`` (ND with fluorescent surfaces, ch. 7); ``"SP"`` (specular white
             points, §8.2), ``"MET"`` (SP plus coloured-metal specular points); combinations such
             as ``"SP-ND"``, ``("MET", "FL")``; ``"SP4"`` for a multiplier other than 8
-            (:class:`~ccjax.estimators.gamut.extensions.Extension`).
+            (:class:`~ccjax.estimators.gamut._extensions.Extension`).
         options: grid sizes and budgets (:class:`GridOptions`).
         metals: ``(M, 101)`` metal specular reflectances for MET (default: brass, copper, gold
             from :mod:`ccjax.materials`, unit mean).
@@ -112,18 +112,18 @@ def fit(
     """
     if constraint not in CONSTRAINTS:
         raise ValueError(f"constraint: expected one of {CONSTRAINTS}, got {constraint!r}")
-    extension = extensions.Extension.parse(extension)
+    extension = _extensions.Extension.parse(extension)
     options = options or GridOptions()
     if not isinstance(options, GridOptions):
         raise ValueError(f"options: expected a GridOptions, got {type(options).__name__}")
-    facets = geometry.gamut_facets(canonical_points(world, extension, metals=metals, fluorescent=fluorescent))
+    facets = _geometry.gamut_facets(canonical_points(world, extension, metals=metals, fluorescent=fluorescent))
     white = np.asarray(world.canonical_white, np.float64)
     whites = np.asarray(world.train_whites, np.float64)
-    illuminant_planes = geometry.cone_planes(whites)
-    map_planes = geometry.cone_planes(white / whites)
+    illuminant_planes = _geometry.cone_planes(whites)
+    map_planes = _geometry.cone_planes(white / whites)
     if constraint == "ECRULE":
         chroma = rg_numpy(whites)
-        pr0, pr1, pg0, pg1 = geometry.preimage_box(map_planes, white)
+        pr0, pr1, pg0, pg1 = _geometry.preimage_box(map_planes, white)
         lo = np.minimum(chroma.min(axis=0), [pr0, pg0]) - _ECRULE_MARGIN
         hi = np.maximum(chroma.max(axis=0), [pr1, pg1]) + _ECRULE_MARGIN
         domain = np.stack([np.maximum(lo, 0.0), np.minimum(hi, 1.0)])

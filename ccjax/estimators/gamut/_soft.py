@@ -8,7 +8,7 @@ feasibility is an indicator. Here every non-smooth step gets a temperature:
 * the surface violation is a soft maximum with width ``kappa`` (sine units) and feasibility is
   ``sigmoid((eps - V)/kappa)`` (ECRULE multiplies the illumination constraint's sigmoid);
 * the selectors are the modules' soft forms: MV a softmax over directions with inverse
-  temperature ``beta`` on ``log(T^3/(rgb))`` (:func:`~ccjax.estimators.gamut.mv.soft`); AVE, ICA and
+  temperature ``beta`` on ``log(T^3/(rgb))`` (:func:`~ccjax.estimators.gamut._mv.soft`); AVE, ICA and
   SCWIA are weighted averages that take the soft mask as their log-mask.
 
 Gradients reach the input RGB and the model's arrays (canonical gamut facets, white). The grid
@@ -26,12 +26,12 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import Estimate
-from ccjax.estimators.gamut import average, mv, scwia
-from ccjax.estimators.gamut.constraints_3d import locate_box, observations, usable_observations
-from ccjax.estimators.gamut.engine import OUTSIDE, cone_violation, directions, dot, square_grid
-from ccjax.estimators.gamut.model import AbstractGamutMapEstimator, GamutModel
-from ccjax.estimators.gamut.relaxation import relaxation_level
-from ccjax.estimators.gamut.selectors import SELECTORS, finish, mask_violation
+from ccjax.estimators.gamut import _average, _mv, _scwia
+from ccjax.estimators.gamut._constraints_3d import locate_box, observations, usable_observations
+from ccjax.estimators.gamut._engine import OUTSIDE, cone_violation, directions, dot, square_grid
+from ccjax.estimators.gamut._model import AbstractGamutMapEstimator, GamutModel
+from ccjax.estimators.gamut._relaxation import relaxation_level
+from ccjax.estimators.gamut._selectors import SELECTORS, finish, mask_violation
 
 
 def _soft_max(values: Float[Array, "G M"], temperature) -> Float[Array, " G"]:
@@ -111,9 +111,9 @@ class SoftGamutMapping(AbstractGamutMapEstimator):
 
         inverse = jnp.where(bounded, inverse, 0.0)
         if self.selector == "MV":
-            estimate = mv.soft(u, log_t, inverse, log_mask, self.beta)
+            estimate = _mv.soft(u, log_t, inverse, log_mask, self.beta)
         elif self.selector in ("AVE", "ICA"):
-            estimate = average.estimate(u, v, log_t, white, log_mask)
+            estimate = _average.estimate(u, v, log_t, white, log_mask)
         else:
-            estimate = scwia.estimate(u, log_t, inverse, white, self.power, log_mask)
+            estimate = _scwia.estimate(u, log_t, inverse, white, self.power, log_mask)
         return finish(estimate, jnp.any(usable), ~failed, level, model.fallback.astype(dtype), scene_scale)
