@@ -12,7 +12,7 @@ from small_world import small_world
 
 from ccjax import _colour, scenes
 from ccjax.estimators import registry
-from ccjax.estimators.correlation import binning
+from ccjax.estimators.correlation import _binning
 
 SCALES = (1e-12, 1e-6, 1e6)
 
@@ -60,7 +60,7 @@ def test_bins_do_not_depend_on_the_scale(surfaces):
     expected = np.clip(np.floor(_rg(np.where(rgb.sum(-1, keepdims=True) > 0, rgb, 1.0)) * 50), 0, 49)
     lit = rgb.sum(-1) > 0
     for scale in (1.0, *SCALES):
-        bins = np.asarray(binning.rg_bins(jnp.asarray(rgb * np.float32(scale))))
+        bins = np.asarray(_binning.rg_bins(jnp.asarray(rgb * np.float32(scale))))
         np.testing.assert_array_equal(bins[lit], expected[lit])
 
 

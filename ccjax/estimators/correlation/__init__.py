@@ -25,7 +25,7 @@ prefixes ``SPEC-`` (specular training world), ``STD-`` (matte, Table 10.2's name
 
 from __future__ import annotations
 
-from ccjax.estimators.correlation.binning import (
+from ccjax.estimators.correlation._binning import (
     N_RG_CELLS,
     RG_BINS,
     compact_rg_cells,
@@ -33,8 +33,8 @@ from ccjax.estimators.correlation.binning import (
     rg_bins,
     soft_presence_scores,
 )
-from ccjax.estimators.correlation.brightness import ColourByCorrelation3D, fit_brightness
-from ccjax.estimators.correlation.chromaticity import (
+from ccjax.estimators.correlation._brightness import ColourByCorrelation3D, fit_brightness
+from ccjax.estimators.correlation._chromaticity import (
     MLM_WIDTHS,
     ColourByCorrelation,
     ColourByCorrelation01,
@@ -44,12 +44,12 @@ from ccjax.estimators.correlation.chromaticity import (
     mlm_width_search,
     tune_mlm_width,
 )
-from ccjax.estimators.correlation.fitting import (
+from ccjax.estimators.correlation._fitting import (
     DEFAULT_SOFTNESS,
     DEFAULT_TEMPERATURE,
     FLUORESCENT_FRACTION,
 )
-from ccjax.estimators.correlation.matrices import (
+from ccjax.estimators.correlation._matrices import (
     BRIGHTNESS_SIGMA,
     brightness_matrix,
     chromaticity_matrix,

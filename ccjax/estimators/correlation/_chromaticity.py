@@ -14,15 +14,15 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg_numpy, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
-from ccjax.estimators.correlation.binning import RG_BINS, presence_scores, soft_presence_scores
-from ccjax.estimators.correlation.fitting import (
+from ccjax.estimators.correlation._binning import RG_BINS, presence_scores, soft_presence_scores
+from ccjax.estimators.correlation._fitting import (
     DEFAULT_TEMPERATURE,
     check_positive,
     illuminant_rg_of,
     resolve_fluorescent,
     resolve_specular,
 )
-from ccjax.estimators.correlation.matrices import chromaticity_matrix, hull_matrix
+from ccjax.estimators.correlation._matrices import chromaticity_matrix, hull_matrix
 from ccjax.estimators.simple import average_illuminant
 from ccjax.precision import matmul
 from ccjax.world import World

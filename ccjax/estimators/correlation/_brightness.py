@@ -13,21 +13,21 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax._colour import rg, rg_to_rgb, valid_pixels
 from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
-from ccjax.estimators.correlation.binning import (
+from ccjax.estimators.correlation._binning import (
     RG_BINS,
     compact_rg_cells,
     rg_bins,
     soft_axis,
     soft_presence_score,
 )
-from ccjax.estimators.correlation.fitting import (
+from ccjax.estimators.correlation._fitting import (
     DEFAULT_TEMPERATURE,
     check_positive,
     illuminant_rg_of,
     resolve_fluorescent,
     resolve_specular,
 )
-from ccjax.estimators.correlation.matrices import BRIGHTNESS_SIGMA, brightness_matrix
+from ccjax.estimators.correlation._matrices import BRIGHTNESS_SIGMA, brightness_matrix
 from ccjax.estimators.simple import average_illuminant
 from ccjax.precision import matmul
 from ccjax.world import World

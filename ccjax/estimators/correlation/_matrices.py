@@ -7,7 +7,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 from scipy.spatial import ConvexHull, QhullError
 
-from ccjax.estimators.correlation.binning import RG_BINS, compact_rg_cells, rg_bins_np
+from ccjax.estimators.correlation._binning import RG_BINS, compact_rg_cells, rg_bins_np
 from ccjax.scenes import Specular
 from ccjax.world import World
 
