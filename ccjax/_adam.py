@@ -1,4 +1,4 @@
-"""The one Adam loop of every learner (optax): the nets (:mod:`ccjax.estimators.neural.training`),
+"""The one Adam loop of every learner (optax): the nets (:mod:`ccjax.estimators.neural._training`),
 ``ccjax train`` (:mod:`ccjax.training.loop`) and learned sharpening (:mod:`ccjax.sharpening.learned`)
 each iterate :func:`adam_step` over their own batches.
 

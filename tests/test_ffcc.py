@@ -23,7 +23,7 @@ from ccjax.estimators.ffcc import (
     local_absolute_deviation,
     wrapped_histogram,
 )
-from ccjax.estimators.ffcc.fitting import from_latent, loss, preconditioner
+from ccjax.estimators.ffcc._fitting import from_latent, loss, preconditioner
 from ccjax.runs import store
 
 

@@ -3,7 +3,7 @@
 
 A correlation matrix holds, per training illuminant, the log-probability of observing a colour cell
 (§4.5.4, §10.2). It is computed once by a ``*_matrix`` function of the world (NumPy,
-:mod:`.matrices`) and stored in the fitted model as a plain array, so a matrix learned by gradient
+:mod:`._matrices`) and stored in the fitted model as a plain array, so a matrix learned by gradient
 descent can be dropped in (``dataclasses.replace(model, log_probability=learned)``). ccjax stores the
 thesis' matrix transposed, one column per training illuminant, ``log_probability (cells, I)``: a
 scene's cells then gather contiguous rows.

@@ -1,19 +1,19 @@
 """Fast Fourier Color Constancy (Barron & Tsai, CVPR 2017; Barron, "Convolutional Color
 Constancy", ICCV 2015), trained on photographs: ``FFCC``.
 
-The image's log-chroma histograms (pixels and local absolute deviation, :mod:`.histogram`) are
+The image's log-chroma histograms (pixels and local absolute deviation, :mod:`._histogram`) are
 convolved with learned filters in the Fourier domain and a learned bias map is added
-(:mod:`.model`); a softmax makes a distribution over the light's log-chroma on a torus, and the
-fitted bivariate von Mises distribution (:mod:`.vonmises`) gives the estimate (its mean) and the
-per-image uncertainty (its covariance, :meth:`FFCC.posterior`). Training (:mod:`.fitting`) is
+(:mod:`._model`); a softmax makes a distribution over the light's log-chroma on a torus, and the
+fitted bivariate von Mises distribution (:mod:`._vonmises`) gives the estimate (its mean) and the
+per-image uncertainty (its covariance, :meth:`FFCC.posterior`). Training (:mod:`._fitting`) is
 L-BFGS in the paper's preconditioned Fourier parametrisation with its total-variation and L2
 regularisers; ``ccjax train --method FFCC`` and ``ccjax evaluate --train FFCC`` run it.
 """
 
-from ccjax.estimators.ffcc.fitting import Hyperparameters, TrainingRecord, train
-from ccjax.estimators.ffcc.histogram import MINIMUM_INTENSITY, featurize, local_absolute_deviation, wrapped_histogram
-from ccjax.estimators.ffcc.model import BIN_SIZE, BINS, FFCC, ORIGIN, Posterior, convolve, uv_to_rgb
-from ccjax.estimators.ffcc.vonmises import fit_von_mises, gaussian_nll
+from ccjax.estimators.ffcc._fitting import Hyperparameters, TrainingRecord, train
+from ccjax.estimators.ffcc._histogram import MINIMUM_INTENSITY, featurize, local_absolute_deviation, wrapped_histogram
+from ccjax.estimators.ffcc._model import BIN_SIZE, BINS, FFCC, ORIGIN, Posterior, convolve, uv_to_rgb
+from ccjax.estimators.ffcc._vonmises import fit_von_mises, gaussian_nll
 from ccjax.estimators.registry import register
 
 __all__ = [

@@ -1,7 +1,7 @@
 """Fitting gamut-mapping models and the Estimator that runs them (Barnard 1999 §4.5.3, ch. 6-9).
 
 ``fit(world, constraint=..., extension=...)`` computes, once, with Qhull: the canonical gamut (or
-its extension: ND, FL, SP, MET and their combinations, :mod:`.extensions`) as fixed-size facet
+its extension: ND, FL, SP, MET and their combinations, :mod:`._extensions`) as fixed-size facet
 arrays, the cone of the training illuminants (ECRULE's illumination constraint) and the cone of
 their map directions (its convex approximation), and the domain of illuminant directions the
 locating stage starts from. The per-scene work is

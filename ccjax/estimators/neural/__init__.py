@@ -31,17 +31,17 @@ training illuminants, camera sensors) and of the :class:`Recipe`. The optimisati
 ``ccjax train-net`` trains and saves; building NEURAL-NET for a world without weights raises
 :class:`MissingWeightsError` saying how to train them (nothing is trained silently).
 
-Modules: :mod:`.model` (input encoding, :class:`Mlp`, :class:`NeuralNet`), :mod:`.training`
-(:class:`Recipe`, :class:`Schedule`, :func:`train`), :mod:`.weights` (the weight files),
-:mod:`.log_chroma` (a baseline beyond the thesis: an MLP on the log-chroma histogram, trained on
+Modules: :mod:`._model` (input encoding, :class:`Mlp`, :class:`NeuralNet`), :mod:`._training`
+(:class:`Recipe`, :class:`Schedule`, :func:`train`), :mod:`._weights` (the weight files),
+:mod:`._log_chroma` (a baseline beyond the thesis: an MLP on the log-chroma histogram, trained on
 photographs by ``ccjax train --method log-chroma-mlp``).
 """
 
 from __future__ import annotations
 
 from ccjax._cache import cache_directory as cache_dir
-from ccjax.estimators.neural.log_chroma import LogChromaNet, init_log_chroma_net, log_chroma_histogram
-from ccjax.estimators.neural.model import (
+from ccjax.estimators.neural._log_chroma import LogChromaNet, init_log_chroma_net, log_chroma, log_chroma_histogram
+from ccjax.estimators.neural._model import (
     BINS,
     N_INPUTS,
     SIMPLEX_MARGIN,
@@ -51,7 +51,7 @@ from ccjax.estimators.neural.model import (
     histogram_bins,
     occupied_bins,
 )
-from ccjax.estimators.neural.training import (
+from ccjax.estimators.neural._training import (
     RECIPES,
     Recipe,
     Schedule,
@@ -61,7 +61,7 @@ from ccjax.estimators.neural.training import (
     training_loss,
     training_world,
 )
-from ccjax.estimators.neural.weights import (
+from ccjax.estimators.neural._weights import (
     MissingWeightsError,
     cache_key,
     has_weights,
@@ -149,6 +149,7 @@ __all__ = [
     "init_log_chroma_net",
     "is_net_label",
     "load",
+    "log_chroma",
     "log_chroma_histogram",
     "occupied_bins",
     "save",

@@ -14,8 +14,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractImageEstimator, Estimate, Padding
-from ccjax.estimators.ffcc.histogram import MINIMUM_INTENSITY, featurize
-from ccjax.estimators.ffcc.vonmises import fit_von_mises
+from ccjax.estimators.ffcc._histogram import MINIMUM_INTENSITY, featurize
+from ccjax.estimators.ffcc._vonmises import fit_von_mises
 
 __all__ = ["FFCC", "Posterior", "convolve", "uv_to_rgb"]
 
@@ -82,7 +82,7 @@ class Posterior(eqx.Module):
 @typing.final
 class FFCC(AbstractImageEstimator):
     """Fast Fourier Color Constancy on one image (module docstring); train it with
-    ``ccjax train --method FFCC`` or ``ccjax evaluate --train FFCC`` (:mod:`ccjax.estimators.ffcc.fitting`).
+    ``ccjax train --method FFCC`` or ``ccjax evaluate --train FFCC`` (:mod:`ccjax.estimators.ffcc._fitting`).
 
     The estimate is the mean of the fitted distribution; :meth:`posterior` gives the whole
     distribution (the covariance and a confidence), the per-image uncertainty. An image without a
@@ -120,7 +120,7 @@ class FFCC(AbstractImageEstimator):
 
     def histogram(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "2 n n"]:
         """The image's two-channel histogram on this model's grid
-        (:func:`ccjax.estimators.ffcc.histogram.featurize`)."""
+        (:func:`ccjax.estimators.ffcc._histogram.featurize`)."""
         return featurize(image, mask, origin=self.origin, bins=self.bins, bin_size=self.bin_size, minimum=self.minimum)
 
     def fit_histogram(self, histogram: Float[Array, "2 n n"]) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:

@@ -25,9 +25,9 @@ import numpy as np
 import optax
 from jaxtyping import Array, Bool, Complex, Float
 
-from ccjax.estimators.ffcc.model import FFCC
-from ccjax.estimators.ffcc.vonmises import fit_von_mises, gaussian_nll
-from ccjax.estimators.neural.log_chroma import log_chroma
+from ccjax.estimators.ffcc._model import FFCC
+from ccjax.estimators.ffcc._vonmises import fit_von_mises, gaussian_nll
+from ccjax.estimators.neural import log_chroma
 from ccjax.precision import matmul
 
 __all__ = [

@@ -14,7 +14,7 @@ from jaxtyping import Array, Float, PRNGKeyArray
 from tqdm.auto import tqdm
 
 from ccjax._adam import adam_init, adam_step
-from ccjax.estimators.neural.model import N_INPUTS, Mlp, occupied_bins
+from ccjax.estimators.neural._model import N_INPUTS, Mlp, occupied_bins
 from ccjax.scenes import SceneTables, Specular, sample_batch, scene_keys
 from ccjax.world import World
 

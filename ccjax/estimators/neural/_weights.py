@@ -12,8 +12,8 @@ from pathlib import Path
 import jax
 
 from ccjax._cache import cache_directory, content_key, load_model, save_model
-from ccjax.estimators.neural.model import Mlp
-from ccjax.estimators.neural.training import RECIPES, Recipe, Schedule, TrainingLog, train
+from ccjax.estimators.neural._model import Mlp
+from ccjax.estimators.neural._training import RECIPES, Recipe, Schedule, TrainingLog, train
 from ccjax.world import World
 
 

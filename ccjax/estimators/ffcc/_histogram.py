@@ -2,7 +2,7 @@
 Barron 2015, §2), one of the usable pixels and one of their local absolute deviation (an edge
 image, §4: "pixels and edges").
 
-Log-chroma is ``u = log(G / R)``, ``v = log(G / B)`` (:func:`ccjax.estimators.neural.log_chroma.log_chroma`);
+Log-chroma is ``u = log(G / R)``, ``v = log(G / B)`` (:func:`ccjax.estimators.neural.log_chroma`);
 bin ``(i, j)`` is centred on ``origin + bin_size * (i, j)`` and the histogram wraps: a value lands
 in the nearest bin modulo ``bins`` (FFCC §3, "aliasing"), so the convolutions of the model are the
 periodic ones the FFT computes.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from ccjax.estimators.neural.log_chroma import log_chroma
+from ccjax.estimators.neural import log_chroma
 
 __all__ = ["MINIMUM_INTENSITY", "featurize", "local_absolute_deviation", "wrapped_histogram"]
 

@@ -31,7 +31,14 @@ LOG_CHROMA_EXTENT = 2.0
 
 def log_chroma(rgb: Float[Array, "P 3"]) -> Float[Array, "P 2"]:
     """``(log(G / R), log(G / B))`` of each surface (a channel at or below 0 counts as 1: finite,
-    and such a surface is never valid, :func:`lit_surfaces`)."""
+    and such a surface is never valid, :func:`lit_surfaces`).
+
+    Arguments:
+        rgb: the surfaces' responses.
+
+    Returns:
+        Each surface's log-chroma ``(u, v)``.
+    """
     safe = jnp.where(rgb > 0, rgb, 1.0)
     return jnp.stack([jnp.log(safe[:, 1] / safe[:, 0]), jnp.log(safe[:, 1] / safe[:, 2])], axis=-1)
 
