@@ -117,7 +117,7 @@ def test_block_average_in_bands_equals_one_pass(monkeypatch):
     """The image is averaged in bands of tile rows; band boundaries change nothing."""
     rgb, clipped = _random_image(9, (61, 47))
     whole = preprocessing.block_average(rgb, ~clipped, 3, 0.2, edges=True)
-    monkeypatch.setattr(preprocessing.reduction, "_CHUNK_PIXELS", 200)  # bands of 3 rows
+    monkeypatch.setattr(preprocessing._reduction, "_CHUNK_PIXELS", 200)  # bands of 3 rows
     np.testing.assert_array_equal(preprocessing.block_average(rgb, ~clipped, 3, 0.2, edges=True), whole)
 
 

@@ -15,13 +15,13 @@
   region-growing segmentation reduce the image to a list of surfaces, padded to a power of two
   (:func:`padded_size`) so jit compiles once per size class.
 
-Modules: :mod:`~ccjax.preprocessing.rules` (usable pixels), :mod:`~ccjax.preprocessing.reduction`
-(block averages, clustering, hull reduction, segmentation), :mod:`~ccjax.preprocessing.methods`
-(the methods by name, surface lists), :mod:`~ccjax.preprocessing.inputs` (each model's input,
+Modules: :mod:`~ccjax.preprocessing._rules` (usable pixels), :mod:`~ccjax.preprocessing._reduction`
+(block averages, clustering, hull reduction, segmentation), :mod:`~ccjax.preprocessing._methods`
+(the methods by name, surface lists), :mod:`~ccjax.preprocessing._inputs` (each model's input,
 running a model on it); every public name is importable from here.
 """
 
-from ccjax.preprocessing.inputs import (
+from ccjax.preprocessing._inputs import (
     estimate_image,
     estimate_pixels,
     input_key,
@@ -33,20 +33,20 @@ from ccjax.preprocessing.inputs import (
     resolve,
     run_model,
 )
-from ccjax.preprocessing.methods import (
+from ccjax.preprocessing._methods import (
     TABLE_4_6,
     Preprocessing,
     as_preprocessing,
     padded_size,
     surfaces,
 )
-from ccjax.preprocessing.reduction import (
+from ccjax.preprocessing._reduction import (
     block_average,
     cluster_rgb,
     hull_reduce,
     segment,
 )
-from ccjax.preprocessing.rules import (
+from ccjax.preprocessing._rules import (
     DEFAULT_DARK,
     DEFAULT_PERCENTILE,
     DEFAULT_PREPROCESSING,

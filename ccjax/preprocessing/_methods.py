@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ccjax.io.reading import LinearImage
-from ccjax.preprocessing.reduction import block_average, cluster_rgb, hull_reduce, segment
-from ccjax.preprocessing.rules import DEFAULT_DARK, DEFAULT_PERCENTILE, DEFAULT_PREPROCESSING, PIXELS, usable_pixels
+from ccjax.preprocessing._reduction import block_average, cluster_rgb, hull_reduce, segment
+from ccjax.preprocessing._rules import DEFAULT_DARK, DEFAULT_PERCENTILE, DEFAULT_PREPROCESSING, PIXELS, usable_pixels
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.estimators.tiles import map_row_tiles, tile_rows
 from ccjax.io.reading import LinearImage
 from ccjax.precision import matmul
-from ccjax.preprocessing.methods import Preprocessing, as_preprocessing, padded_size, surfaces
-from ccjax.preprocessing.rules import DEFAULT_DARK, DEFAULT_PERCENTILE, PIXELS, usable_pixels
+from ccjax.preprocessing._methods import Preprocessing, as_preprocessing, padded_size, surfaces
+from ccjax.preprocessing._rules import DEFAULT_DARK, DEFAULT_PERCENTILE, PIXELS, usable_pixels
 
 
 def input_rule(input_kind: str, preprocessing: str | Preprocessing) -> Preprocessing:
