@@ -11,7 +11,7 @@ import jax
 import numpy as np
 import pytest
 
-import ccjax.training.folds as fold_module
+import ccjax.training._folds as fold_module
 from ccjax import cli, io, scenes, training
 from ccjax.experiments import evaluation
 

@@ -1,7 +1,7 @@
 """Training estimators on image sets (optax): the learnable parameters of each differentiable
-family (:mod:`.parameters`), training examples read from a folder (:mod:`.data`), the Adam loop
-with relighting augmentation, held-out error and early stopping (:mod:`.loop`), K-fold
-cross-validation (:mod:`.folds`); model files: :func:`ccjax.runs.store.save_trained` and
+family (:mod:`._parameters`), training examples read from a folder (:mod:`._data`), the Adam loop
+with relighting augmentation, held-out error and early stopping (:mod:`._loop`), K-fold
+cross-validation (:mod:`._folds`); model files: :func:`ccjax.runs.store.save_trained` and
 :func:`ccjax.load_model`.
 
 Typical use::
@@ -11,8 +11,8 @@ Typical use::
     )
 """
 
-from ccjax.training.data import Examples, load_examples, read_examples, source_examples
-from ccjax.training.folds import (
+from ccjax.training._data import Examples, load_examples, read_examples, source_examples
+from ccjax.training._folds import (
     CrossValidation,
     FoldResult,
     assign_folds,
@@ -20,9 +20,9 @@ from ccjax.training.folds import (
     read_folds,
     train_on_images,
 )
-from ccjax.training.loop import Schedule, TrainingLog, angular_errors, fit_to_examples, predict, subsample
-from ccjax.training.parameters import constrain, learnable, learnable_types
-from ccjax.training.procedures import train_model
+from ccjax.training._loop import Schedule, TrainingLog, angular_errors, fit_to_examples, predict, subsample
+from ccjax.training._parameters import constrain, learnable, learnable_types
+from ccjax.training._procedures import train_model
 
 __all__ = [
     "CrossValidation",

@@ -12,9 +12,9 @@ import numpy as np
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.io.reading import MAX_PIXELS
-from ccjax.training.data import Examples, read_examples
-from ccjax.training.loop import Schedule, TrainingLog, angular_errors
-from ccjax.training.procedures import train_model
+from ccjax.training._data import Examples, read_examples
+from ccjax.training._loop import Schedule, TrainingLog, angular_errors
+from ccjax.training._procedures import train_model
 
 
 def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:

@@ -19,8 +19,8 @@ from ccjax import augment, losses, metrics
 from ccjax._adam import adam_init, adam_step
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.runs import hosts
-from ccjax.training.data import Examples
-from ccjax.training.parameters import constrain, learnable
+from ccjax.training._data import Examples
+from ccjax.training._parameters import constrain, learnable
 
 
 @dataclass(frozen=True)

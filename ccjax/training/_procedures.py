@@ -1,6 +1,6 @@
 """Which training procedure a model gets: a family with its own solver (FFCC: L-BFGS on
 histograms computed once, Barron & Tsai 2017 §3) is trained by it; the others by the Adam loop
-(:func:`ccjax.training.loop.fit_to_examples`)."""
+(:func:`ccjax.training._loop.fit_to_examples`)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import time
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.estimators.ffcc import FFCC
 from ccjax.estimators.ffcc import train as train_ffcc
-from ccjax.training.data import Examples
-from ccjax.training.loop import Schedule, TrainingLog, fit_to_examples
+from ccjax.training._data import Examples
+from ccjax.training._loop import Schedule, TrainingLog, fit_to_examples
 
 __all__ = ["train_model"]
 
@@ -45,7 +45,7 @@ def train_model(
     Arguments:
         model: a fitted, trainable estimator (the start).
         examples: training examples.
-        schedule: the Adam loop's :class:`~ccjax.training.loop.Schedule` (default: its
+        schedule: the Adam loop's :class:`~ccjax.training._loop.Schedule` (default: its
             defaults; families with their own solver ignore it).
         validation: held-out examples for the Adam loop's early stopping.
         progress: progress bars.
