@@ -17,7 +17,7 @@ renders the fluorescent test surfaces through that characterisation (as the thes
 scenes were), builds FL's gamut from it and prints both kinds of numbers beside the thesis'.
 ``--scenes`` scenes per condition (default 1000, the thesis' count) of 4 and 8 surfaces: the
 scenes of ``ccjax reproduce 7.2``, so the row of the default surfaces (``1x1``) repeats its cells.
-The defaults were chosen with it (:mod:`ccjax.materials.fluorescence`: the measured member whose
+The defaults were chosen with it (:mod:`ccjax.materials._fluorescence`: the measured member whose
 cost is within 3 % of the thesis' at both sizes with the most harm, bands up to 210 nm);
 ``2x0.3333`` is the first, physically chosen set.
 

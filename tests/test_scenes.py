@@ -17,7 +17,7 @@ from ccjax.scenes import (
     scene_keys,
     sweep_keys,
 )
-from ccjax.scenes import options as scene_options
+from ccjax.scenes import _options as scene_options
 
 
 @pytest.mark.parametrize("n_surfaces", [1, 8, 64, 65, 1024, 1993])

@@ -1,9 +1,9 @@
 """Materials beyond matte reflectances (Barnard 1999 ch. 7–8): metal specular spectra from optical
-constants (:mod:`ccjax.materials.metals`) and synthetic fluorescent surfaces with the thesis'
-measurement-based characterisation (:mod:`ccjax.materials.fluorescence`).
+constants (:mod:`ccjax.materials._metals`) and synthetic fluorescent surfaces with the thesis'
+measurement-based characterisation (:mod:`ccjax.materials._fluorescence`).
 """
 
-from ccjax.materials.fluorescence import (
+from ccjax.materials._fluorescence import (
     FLUORESCENT_PROBABILITY,
     FLUORESCENT_SURFACES,
     FLUORESCENT_TRAINING_MULTIPLIER,
@@ -20,7 +20,7 @@ from ccjax.materials.fluorescence import (
     prediction_error,
     synthetic_fluorescent_surfaces,
 )
-from ccjax.materials.metals import (
+from ccjax.materials._metals import (
     COLOURED_METALS,
     GREY_METALS,
     MET_MULTIPLIER,

@@ -26,8 +26,7 @@ from ccjax import scenes
 from ccjax._cache import code_fingerprint, content_key, read_arrays, write_arrays
 from ccjax.estimators.base import AbstractEstimator, Padding, require_kind
 from ccjax.runs.engine import Placement, Stream, chunking, run_streams
-from ccjax.scenes import SceneOptions, Scenes, SceneTables
-from ccjax.scenes.options import require_count
+from ccjax.scenes import SceneOptions, Scenes, SceneTables, require_count
 from ccjax.world import World
 
 MAX_PADDING = 2

@@ -4,7 +4,7 @@ methods).
 
 Like the surface-list scenes, every image is a pure function of its key (image ``i`` uses
 ``fold_in(key, i)``), so batches are reproducible whatever their chunking. The material options of
-:mod:`ccjax.scenes.surfaces` apply here too: fluorescent patches (:class:`Fluorescent`, §7.3) and
+:mod:`ccjax.scenes._surfaces` apply here too: fluorescent patches (:class:`Fluorescent`, §7.3) and
 metallic highlights (:class:`Metallic`, §8.3: a highlight blob coloured by the metal), their draws
 folded off the image key so that images without them are unchanged.
 """
@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
-from ccjax.scenes.options import (
+from ccjax.scenes._options import (
     Fluorescent,
     Metallic,
     ShotNoise,
@@ -28,14 +28,14 @@ from ccjax.scenes.options import (
     resolve_materials,
     resolve_options,
 )
-from ccjax.scenes.surfaces import (
+from ccjax.scenes._surfaces import (
     FLUORESCENT_STREAM,
     METAL_STREAM,
     SceneKeys,
     draw_without_replacement,
     scene_keys,
 )
-from ccjax.scenes.tables import RadianceModel, SceneTables, default_fluorescent, require_tables
+from ccjax.scenes._tables import RadianceModel, SceneTables, default_fluorescent, require_tables
 from ccjax.world import World
 
 
@@ -145,7 +145,7 @@ def render_mondrian(
         patch_rgb: ``(P, 3)`` RGB of each patch under the image's light.
         white: ``(3,)`` RGB of a perfect white under that light.
         shading: range of the per-patch shading factor.
-        specular, noise, clip, metallic: the scene options (:mod:`ccjax.scenes.options`).
+        specular, noise, clip, metallic: the scene options (:mod:`ccjax.scenes._options`).
         normalise: scale the noise-free image so its brightest channel value is 1.
         metal_rgb: ``(M, 3)`` the metals' RGBs under the image's light (with ``metallic``).
 

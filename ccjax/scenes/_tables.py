@@ -11,9 +11,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ccjax.materials.metals import scene_metal_spectra
+from ccjax.materials import scene_metal_spectra
 from ccjax.precision import einsum, matmul
-from ccjax.scenes.options import Fluorescent, Metallic
+from ccjax.scenes._options import Fluorescent, Metallic
 from ccjax.world import World
 
 
@@ -131,6 +131,6 @@ def default_fluorescent(model: RadianceModel | None) -> RadianceModel:
     """``model``, or the default fluorescent surfaces (the nine synthetic ones' physical model)."""
     if model is not None:
         return model
-    from ccjax.materials.fluorescence import synthetic_fluorescent_surfaces
+    from ccjax.materials import synthetic_fluorescent_surfaces
 
     return synthetic_fluorescent_surfaces()

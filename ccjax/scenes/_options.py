@@ -13,7 +13,7 @@ import math
 import operator
 from dataclasses import dataclass
 
-from ccjax.materials.metals import METAL_MAX_AMOUNT, METAL_PROBABILITY
+from ccjax.materials import METAL_MAX_AMOUNT, METAL_PROBABILITY
 
 
 @dataclass(frozen=True)

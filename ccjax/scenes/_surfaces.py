@@ -2,7 +2,7 @@
 
 A scene is ``P`` surfaces drawn without replacement from the world's reflectances under one
 illuminant drawn from the **test** set; each surface gives one RGB. The rendering options
-(:mod:`ccjax.scenes.options`, all held by one :class:`SceneOptions`) reproduce the thesis'
+(:mod:`ccjax.scenes._options`, all held by one :class:`SceneOptions`) reproduce the thesis'
 experiments: specularities (each surface specular with probability 0.25, adding ``U(0, 2)`` times
 a perfect white, §4.7 and ch. 8), metallic highlights (:class:`Metallic`: probability 0.25, adding
 ``U(0, 4)`` times a metal's reflectance, §8.3), fluorescent surfaces (:class:`Fluorescent`: each
@@ -10,7 +10,7 @@ surface slot replaced by one of the fluorescent surfaces with probability 0.3, �
 clipping (pixels with any channel above the level are discarded, i.e. masked out) and shot noise
 (the chapter 3 noise model, variance ``a * rho + b``).
 
-Metal and fluorescent colours come from :class:`SceneTables` (:mod:`ccjax.scenes.tables`), built
+Metal and fluorescent colours come from :class:`SceneTables` (:mod:`ccjax.scenes._tables`), built
 with ``SceneTables.from_world(world, metals=..., fluorescent=...)``; the options only say how often
 and how strongly they occur, so they stay static (hashable) arguments of the jitted samplers.
 Their random draws come from keys folded off the scene key, so turning a material option on
@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, UInt32
 
-from ccjax.scenes.options import (
+from ccjax.scenes._options import (
     Fluorescent,
     Metallic,
     SceneOptions,
@@ -40,7 +40,7 @@ from ccjax.scenes.options import (
     Specular,
     require_count,
 )
-from ccjax.scenes.tables import RadianceModel, SceneTables, default_fluorescent, require_tables
+from ccjax.scenes._tables import RadianceModel, SceneTables, default_fluorescent, require_tables
 from ccjax.world import World
 
 SceneKeys = Key[Array, " B"] | UInt32[Array, "B 2"]
@@ -199,7 +199,7 @@ def sample_one(
         key: the scene's key.
         tables: the world's :class:`SceneTables`.
         n_surfaces: surfaces in the scene.
-        specular, noise, clip, metallic, fluorescent: the scene options (:mod:`ccjax.scenes.options`).
+        specular, noise, clip, metallic, fluorescent: the scene options (:mod:`ccjax.scenes._options`).
         slots: surface slots (static; ``None``: ``n_surfaces``).
 
     Returns:
@@ -267,7 +267,7 @@ def sample_batch(
         keys: ``(B,)`` per-scene keys (:func:`scene_keys`).
         tables: the world's :class:`SceneTables`.
         n_surfaces: surfaces per scene.
-        specular, noise, clip, metallic, fluorescent: the scene options (:mod:`ccjax.scenes.options`).
+        specular, noise, clip, metallic, fluorescent: the scene options (:mod:`ccjax.scenes._options`).
 
     Returns:
         The :class:`Scenes` of the batch.
