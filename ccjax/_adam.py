@@ -1,5 +1,5 @@
 """The one Adam loop of every learner (optax): the nets (:mod:`ccjax.estimators.neural._training`),
-``ccjax train`` (:mod:`ccjax.training._loop`) and learned sharpening (:mod:`ccjax.sharpening.learned`)
+``ccjax train`` (:mod:`ccjax.training._loop`) and learned sharpening (:mod:`ccjax.sharpening._learned`)
 each iterate :func:`adam_step` over their own batches.
 
 One optimiser object serves every run: its learning rate is a hyper-parameter held in the state

@@ -21,9 +21,9 @@ from small_world import small_world
 from ccjax import correction, losses, precision, scenes
 from ccjax.calibration import fitting
 from ccjax.estimators import neural, registry
-from ccjax.scenes.tables import SceneTables
-from ccjax.sharpening import best_diagonal_map, best_linear_map, new_method, sharpened
-from ccjax.sharpening.transforms import actual_error, best_linear_error, diagonal_error
+from ccjax.scenes import SceneTables
+from ccjax.sharpening import _new_method, best_diagonal_map, best_linear_map, sharpened
+from ccjax.sharpening._transforms import actual_error, best_linear_error, diagonal_error
 
 A = jnp.ones((4, 3))
 B = jnp.ones((3, 5))
@@ -152,7 +152,7 @@ def test_sharpening_uses_highest(world):
     truth, white = jnp.ones(3), jnp.ones(3)
     assert _found(actual_error, source, target, transform, truth, white) == []
     train = world.responses(world.train_illuminants)
-    grad = jax.grad(new_method.objective)
+    grad = jax.grad(_new_method.objective)
     assert _found(lambda t: grad(t, train, target, 1.0, 1.0), transform) == []
     model = sharpened("DB-GW", transform, world)
     assert _found(lambda rgb: model(rgb, jnp.ones(16, bool)).illuminant, jnp.ones((16, 3))) == []

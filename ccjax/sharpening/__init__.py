@@ -3,21 +3,21 @@
 A sharpening transform ``T`` (3x3) replaces responses ``x`` (rows) by ``x @ T``; a diagonal-model
 algorithm runs there and its map ``d#`` acts back in camera space as ``T diag(d#) T^-1``.
 
-* :mod:`ccjax.sharpening.transforms`: the error measures of §5.4/§5.7 (best linear map, best
+* :mod:`ccjax.sharpening._transforms`: the error measures of §5.4/§5.7 (best linear map, best
   diagonal map for a given ``T``, RMS RGB mapping error over the whole reflectance set, the
   camera's sharpness) and database sharpening (§5.1/§5.2: "opt" and "ave");
-* :mod:`ccjax.sharpening.new_method`: the thesis' new method (§5.3, "gd-identity");
-* :mod:`ccjax.sharpening.wrapper`: :func:`sharpened`, any estimator run in sharpened space with
+* :mod:`ccjax.sharpening._new_method`: the thesis' new method (§5.3, "gd-identity");
+* :mod:`ccjax.sharpening._wrapper`: :func:`sharpened`, any estimator run in sharpened space with
   the revert policy (§5.2, §5.4);
-* :mod:`ccjax.sharpening.learned`: ``T`` learned end to end through a differentiable estimator
+* :mod:`ccjax.sharpening._learned`: ``T`` learned end to end through a differentiable estimator
   (beyond the thesis).
 
 The chapter-5 experiments (Table 5.1, the transform summaries and plots of ``ccjax sharpen``,
 camera ranking) are in :mod:`ccjax.experiments.chapter5`.
 """
 
-from ccjax.sharpening.learned import LearnedSharpening, learned_sharpening, scene_losses
-from ccjax.sharpening.new_method import (
+from ccjax.sharpening._learned import LearnedSharpening, learned_sharpening, scene_losses
+from ccjax.sharpening._new_method import (
     NEGATIVE_TOLERANCE,
     POSITIVITY_OFFSET,
     DatabaseStatistics,
@@ -28,7 +28,7 @@ from ccjax.sharpening.new_method import (
     objective_terms,
     on_sphere,
 )
-from ccjax.sharpening.transforms import (
+from ccjax.sharpening._transforms import (
     THESIS_SCALE,
     actual_error,
     average_sharpening,
@@ -43,7 +43,7 @@ from ccjax.sharpening.transforms import (
     optimal_sharpening,
     sharpness,
 )
-from ccjax.sharpening.wrapper import EstimatorFit, Sharpened, estimator_fit, sharpened, sharpened_world
+from ccjax.sharpening._wrapper import EstimatorFit, Sharpened, estimator_fit, sharpened, sharpened_world
 
 __all__ = [
     "NEGATIVE_TOLERANCE",

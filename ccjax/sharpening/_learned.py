@@ -22,9 +22,9 @@ from ccjax.estimators.base import AbstractEstimator
 from ccjax.losses import angular_errors
 from ccjax.precision import matmul
 from ccjax.scenes import draw_scenes, sweep_keys
-from ccjax.sharpening.new_method import on_sphere
-from ccjax.sharpening.transforms import THESIS_SCALE, database_responses, mapping_error
-from ccjax.sharpening.wrapper import sharpened
+from ccjax.sharpening._new_method import on_sphere
+from ccjax.sharpening._transforms import THESIS_SCALE, database_responses, mapping_error
+from ccjax.sharpening._wrapper import sharpened
 from ccjax.world import World
 
 LOSSES = ("mapping", "angular")

@@ -19,7 +19,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ccjax.precision import einsum, matmul
-from ccjax.sharpening.transforms import database_responses
+from ccjax.sharpening._transforms import database_responses
 from ccjax.world import World
 
 POSITIVITY_OFFSET = 0.1 / 255.0

@@ -16,7 +16,7 @@ from ccjax.estimators.spatial import GreyEdge
 # from the camera's spectral fit), grey edge's Minkowski norm, the net's weights (§4.5.5), FFCC's
 # filters and bias map (Barron & Tsai 2017 §3). (A
 # sharpened model's inner estimator is fitted to the sharpened world, so its transform is learned
-# through a traceable fit instead: ccjax.sharpening.learned.)
+# through a traceable fit instead: ccjax.sharpening.learned_sharpening.)
 _LEARNABLE = {
     ColourByCorrelation: lambda m: m.log_probability,
     ColourByCorrelation3D: lambda m: m.log_probability,
