@@ -1,5 +1,5 @@
 """Shapes per backend (ccjax.backends) and the compile log of ``ccjax compare``
-(ccjax.runs.compilation)."""
+(ccjax.runs.CompileLog)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ import jax.numpy as jnp
 import pytest
 
 from ccjax import backends
-from ccjax.runs import engine
-from ccjax.runs.compilation import CompileLog
+from ccjax.runs import CompileLog, engine
 
 GIB = 1 << 30
 

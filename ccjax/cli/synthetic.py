@@ -99,7 +99,7 @@ def run_compare(args) -> int:
 
     from ccjax import _cache, experiments
     from ccjax.cli import STARTED as start
-    from ccjax.runs.compilation import CompileLog
+    from ccjax.runs import CompileLog
 
     imported = time.perf_counter()
     check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)

@@ -14,14 +14,18 @@
   :func:`ccjax.experiments.folders.evaluate_folder`).
 * :mod:`ccjax.runs.hosts`: scale-out primitives: processes under ``jax.distributed``, the item
   axis split over processes and sharded over a device mesh, results pooled.
+
+:class:`CompileLog` counts the programs a run compiled and the seconds compiling took.
 """
 
 from ccjax.runs import engine, folders, hosts, images, sources, store, synthetic
+from ccjax.runs._compilation import CompileLog
 from ccjax.runs.folders import correct_folder, estimate_folder
 from ccjax.runs.images import ImageRun, run_models
 from ccjax.runs.sources import ImageFolder, image_folder
 
 __all__ = [
+    "CompileLog",
     "ImageFolder",
     "ImageRun",
     "correct_folder",
