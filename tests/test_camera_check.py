@@ -8,7 +8,7 @@ import pytest
 
 import ccjax.io
 from ccjax import cli, io
-from ccjax.experiments import cameras
+from ccjax.experiments import _cameras as cameras
 from ccjax.runs import store
 from ccjax.world import World
 

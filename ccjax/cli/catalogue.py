@@ -85,7 +85,7 @@ def run_cameras(args) -> int:
     import numpy as np
 
     from ccjax import io
-    from ccjax.experiments import cameras
+    from ccjax.experiments import curve_check, plot_curve_check
     from ccjax.runs import store
 
     check_outputs([args.check], [("--plot", args.plot)], overwrite=args.overwrite)
@@ -95,12 +95,10 @@ def run_cameras(args) -> int:
     check_camera_name(args)
     truth = np.stack(list(io.read_ground_truth(args.check).values()))
     world = store.world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
-    check = cameras.curve_check(truth, world)
+    check = curve_check(truth, world)
     print(check.message())
     if args.plot:
-        write_plot(
-            args.plot, lambda file: cameras.plot_curve_check(check, world, truth, file), overwrite=args.overwrite
-        )
+        write_plot(args.plot, lambda file: plot_curve_check(check, world, truth, file), overwrite=args.overwrite)
     return 0 if check.passed else 1
 
 

@@ -7,14 +7,24 @@
   a synthetic source of the same engine);
 * :mod:`ccjax.experiments.reports` -- the tidy-rows :class:`Report` (text, CSV, JSON);
 * :mod:`ccjax.experiments.plots` -- error versus number of surfaces, world chromaticities;
-* :mod:`ccjax.experiments.cameras` -- camera list, SFU-321 camera check, sharpness study.
+* camera studies (:mod:`ccjax.experiments._cameras`) -- the camera list, the SFU-321 camera check, the
+  sharpness study and the ground truth's check against a camera (:func:`curve_check`).
 
 The chapter-specific experiments (``chapter5``, ``indexing``, ``evaluation``) are submodules
 imported on their own (``from ccjax.experiments import chapter5``), not from here, so importing
 this package stays cheap.
 """
 
-from ccjax.experiments.cameras import STUDY_METHODS, SharpeningStudy, camera_listing, sfu321_check, sharpening_study
+from ccjax.experiments._cameras import (
+    STUDY_METHODS,
+    CurveCheck,
+    SharpeningStudy,
+    camera_listing,
+    curve_check,
+    plot_curve_check,
+    sfu321_check,
+    sharpening_study,
+)
 from ccjax.experiments.plots import plot, plot_world
 from ccjax.experiments.protocols import BASIC_COLUMNS, PROTOCOLS, Condition, Reproduction, reproduce
 from ccjax.experiments.reports import Column, Report
@@ -34,13 +44,16 @@ __all__ = [
     "STUDY_METHODS",
     "Column",
     "Condition",
+    "CurveCheck",
     "Report",
     "Reproduction",
     "SharpeningStudy",
     "SweepResult",
     "camera_listing",
+    "curve_check",
     "is_registered",
     "plot",
+    "plot_curve_check",
     "plot_world",
     "reproduce",
     "require_surface_estimator",

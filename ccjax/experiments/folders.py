@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.experiments.cameras import CurveCheck, curve_check
+from ccjax.experiments._cameras import CurveCheck, curve_check
+from ccjax.experiments._fold_tables import fold_table, training_table
 from ccjax.experiments.evaluation import ImageResults, fold_worlds
-from ccjax.experiments.fold_tables import fold_table, training_table
 from ccjax.io.reading import MAX_PIXELS
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, resolve
 from ccjax.world import World
@@ -53,7 +53,7 @@ class FolderEvaluation:
         fold_of: ``(N,)`` the fold of each of ``results.paths`` (None without folds).
         validations: ``{label: CrossValidation}`` of each trained label.
         trained_models: ``{"<label> trained": [the model of fold 0, ...]}`` (to save them).
-        check: the ground truth against the world's camera (:func:`ccjax.experiments.cameras.curve_check`),
+        check: the ground truth against the world's camera (:func:`ccjax.experiments._cameras.curve_check`),
             when it was asked for or a method is world-based.
         failures: one failure record per image that could not be used, in path order.
         total: how many images the ground truth lists.
@@ -321,7 +321,7 @@ def evaluate_folder(
         read_options: keyword arguments of :func:`ccjax.io.read_image`.
         masks: a folder of masks named by the images' stems, or None.
         check_camera: compare the ground truth with the world's camera
-            (:func:`ccjax.experiments.cameras.curve_check`) even when no method is world-based.
+            (:func:`ccjax.experiments._cameras.curve_check`) even when no method is world-based.
         allow_missing: score the listed images when some image files of the folder have no
             ground-truth row (named in :attr:`FolderEvaluation.unlisted`) instead of refusing.
         progress: progress bars on stderr.
