@@ -16,8 +16,9 @@ from jaxtyping import TypeCheckError
 
 from ccjax import calibration as cal
 from ccjax import data
-from ccjax.calibration import experiment, files
-from ccjax.calibration import synthetic as synthetic_module
+from ccjax.calibration import _files as files
+from ccjax.calibration import _synthetic as synthetic_module
+from ccjax.calibration import experiment
 from ccjax.cli import main as cli_main
 
 TRUE_F = dict(black=10.0, exp_rate=0.15)

@@ -12,7 +12,7 @@ from image_files import one_line_error
 
 import ccjax.io
 from ccjax import cli, io
-from ccjax.calibration import files as calibration_files
+from ccjax.calibration import _files as calibration_files
 from ccjax.io import outputs, writing
 from ccjax.runs import folders
 

@@ -13,7 +13,8 @@ from image_files import one_line_error
 from small_world import small_world
 
 from ccjax import cli
-from ccjax.calibration import experiment, files, plots
+from ccjax.calibration import _files as files
+from ccjax.calibration import experiment, plots
 from ccjax.calibration.robustness import Robustness
 from ccjax.cli import indexing, sharpen
 from ccjax.experiments import plots as experiment_plots

@@ -12,9 +12,7 @@
   (Fig. 3.6) and the plots behind ``ccjax calibrate``.
 """
 
-from ccjax.calibration._kernel import second_difference
-from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
-from ccjax.calibration.batch import (
+from ccjax.calibration._batch import (
     BatchFit,
     CrossValidation,
     evaluate_batch,
@@ -23,18 +21,20 @@ from ccjax.calibration.batch import (
     fit_subsets,
     random_subsets,
 )
-from ccjax.calibration.errors import FitErrors, curve_error, fit_errors, support_of
-from ccjax.calibration.files import (
+from ccjax.calibration._files import (
     CalibrationData,
     CalibrationFileError,
     read_calibration_csv,
     write_calibration_csv,
     write_sensors_csv,
 )
+from ccjax.calibration._kernel import second_difference
+from ccjax.calibration._noise import NoiseModel, fit_noise_model, synthetic_repeats
+from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
+from ccjax.calibration._synthetic import SyntheticCalibration, has_external_lights, synthetic_calibration
+from ccjax.calibration.errors import FitErrors, curve_error, fit_errors, support_of
 from ccjax.calibration.fitting import FitStatus, SensorFit, fit_sensors, pseudo_inverse
 from ccjax.calibration.linearisation import Linearisation, apply_linearisation, invert_linearisation
-from ccjax.calibration.noise import NoiseModel, fit_noise_model, synthetic_repeats
-from ccjax.calibration.synthetic import SyntheticCalibration, synthetic_calibration
 
 __all__ = [
     "DEFAULT_SMOOTHNESS",
@@ -57,6 +57,7 @@ __all__ = [
     "fit_sensors_batch",
     "fit_sensors_cv",
     "fit_subsets",
+    "has_external_lights",
     "invert_linearisation",
     "pseudo_inverse",
     "random_subsets",

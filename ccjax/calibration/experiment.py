@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ccjax.calibration._batch import CrossValidation
 from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
-from ccjax.calibration.batch import CrossValidation
-from ccjax.calibration.synthetic import LightChoice, SyntheticCalibration
+from ccjax.calibration._synthetic import LightChoice, SyntheticCalibration
 from ccjax.calibration.table import (
     BLACK_SUBTRACTED,
     IGNORE_F,
@@ -105,7 +105,7 @@ class SyntheticReport:
 def noise_experiment(gain: float, floor: float, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The thesis' noise measurement (Fig. 3.1) for a known model: 100 repeats of 24 windows at 8
     intensity levels per channel (unit scale), fitted with :func:`fit_noise_model`."""
-    from ccjax.calibration.noise import fit_noise_model, synthetic_repeats
+    from ccjax.calibration._noise import fit_noise_model, synthetic_repeats
 
     levels = np.repeat(np.geomspace(0.01, 0.9, 8), 24)
     samples = np.stack([synthetic_repeats(levels, gain=gain, floor=floor, seed=seed + k) for k in range(3)], axis=-1)
@@ -132,14 +132,14 @@ def synthetic_experiment(
         cv: choose lambda by five-fold cross-validation.
         exp_rate: C of the linearisation per channel, or ``None`` to search it.
         data_dir: external data directory (SFU lights, Sony curves).
-        lights: the light set, see :func:`~ccjax.calibration.synthetic.calibration_lights`.
+        lights: the light set, see :func:`~ccjax.calibration._synthetic.calibration_lights`.
 
     Returns:
         A :class:`SyntheticReport`; its :meth:`~SyntheticReport.text` names the camera and the
         lights used, and says why when the SFU lights were not available.
     """
-    from ccjax.calibration.batch import fit_sensors_cv
-    from ccjax.calibration.synthetic import synthetic_calibration
+    from ccjax.calibration._batch import fit_sensors_cv
+    from ccjax.calibration._synthetic import synthetic_calibration
 
     data = synthetic_calibration(camera, seed=seed, data_dir=data_dir, lights=lights)
     black = data.linearisation.black[0]

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ccjax.calibration._batch import evaluate_batch, fit_subsets, random_subsets
 from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
-from ccjax.calibration.batch import evaluate_batch, fit_subsets, random_subsets
 from ccjax.calibration.errors import support_of
 from ccjax.calibration.fitting import fit_sensors
 from ccjax.calibration.table import (

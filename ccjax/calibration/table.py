@@ -16,9 +16,9 @@ import numpy as np
 
 from ccjax._colour import rg_numpy
 from ccjax.calibration._plan import DEFAULT_SMOOTHNESS
+from ccjax.calibration._synthetic import SyntheticCalibration
 from ccjax.calibration.errors import curve_error, fit_errors, support_of
 from ccjax.calibration.fitting import SensorFit, fit_sensors, pseudo_inverse
-from ccjax.calibration.synthetic import SyntheticCalibration
 
 JOINT = "New fitting method with linearity fitting"
 JOINT_RANGE = "New method with linearity fitting and range"

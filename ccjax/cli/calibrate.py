@@ -131,7 +131,15 @@ def check_outputs(args) -> None:
 def run_calibrate(args) -> int:
     import numpy as np
 
-    from ccjax.calibration import DEFAULT_SMOOTHNESS, experiment, files, plots, robustness, synthetic
+    from ccjax.calibration import (
+        DEFAULT_SMOOTHNESS,
+        experiment,
+        has_external_lights,
+        plots,
+        read_calibration_csv,
+        robustness,
+        write_sensors_csv,
+    )
     from ccjax.calibration import table as table_3_1
 
     start = time.perf_counter()
@@ -145,7 +153,7 @@ def run_calibrate(args) -> int:
     if args.synthetic:
         camera = args.camera
         if camera is None:  # say which camera was chosen and why, never switch silently
-            if synthetic.has_external_lights(args.data_dir):
+            if has_external_lights(args.data_dir):
                 camera = "Sony DXC-930"
                 print("camera: Sony DXC-930 (the thesis camera; --camera chooses another)")
             else:
@@ -168,7 +176,7 @@ def run_calibrate(args) -> int:
         print(table.to_json() if args.json else report.text(), flush=True)
         title = f"{camera}: fitted (solid) vs true (dashed) sensors"
     else:
-        data = files.read_calibration_csv(args.file)
+        data = read_calibration_csv(args.file)
         spectra, raw = data.spectra, data.responses
         black = 0.0 if args.black is None else args.black
         smoothness = args.smoothness
@@ -221,7 +229,7 @@ def run_calibrate(args) -> int:
         )
     if args.save:
         fit = table.row(table_3_1.JOINT).fit
-        files.write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation, overwrite=args.overwrite)
+        write_sensors_csv(args.save, np.asarray(fit.sensors), fit.linearisation, overwrite=args.overwrite)
         print(f"wrote {args.save}", file=sys.stderr)
     if args.robustness:
         sizes = [n for n in args.sizes if n < len(spectra)]
