@@ -3,13 +3,16 @@ cross-validated and trained within folds (:func:`ccjax.experiments.folders.evalu
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
+import pathlib
 import sys
 import time
 
 from ccjax.cli import image_options
 from ccjax.cli.common import (
+    check_camera_option,
     check_outputs,
     check_plot,
     label_list,
@@ -33,8 +36,36 @@ def add_evaluate(sub) -> None:
         "truth is checked against that camera's whites (see `ccjax cameras --check`). Unreadable images are "
         "reported and skipped (exit status 2).",
     )
-    p.add_argument("directory", help="folder of linear images")
-    p.add_argument("--ground-truth", required=True, help="CSV with header image,r,g,b")
+    p.add_argument(
+        "directories",
+        nargs="+",
+        metavar="DIR",
+        help="folder of linear images; several folders (e.g. the eight NUS-8 cameras' sets) are each evaluated "
+        "on their own (the field's protocol: per-folder rows, then the geometric mean of each statistic over the "
+        "folders, training seconds per fold and inference ms/image)",
+    )
+    p.add_argument("--ground-truth", default=None, help="CSV with header image,r,g,b (one folder)")
+    p.add_argument(
+        "--ground-truth-name",
+        default=None,
+        metavar="NAME",
+        help="the ground truth's file name inside each folder (e.g. groundtruth.csv), instead of --ground-truth",
+    )
+    p.add_argument(
+        "--camera-for",
+        action="append",
+        default=[],
+        metavar="FOLDER=CAMERA",
+        help="the camera of one folder (its name or its path as given), overriding --camera for it; repeat for "
+        "each folder. World-based methods are left out of folders without a camera (noted under the table)",
+    )
+    p.add_argument(
+        "--models",
+        default=None,
+        metavar="DIR",
+        help="with --train: write each fold's trained model as DIR/<label>-fold<k>.eqx (several folders: "
+        "DIR/<folder>/<label>-fold<k>.eqx; `ccjax.load_model` reads them)",
+    )
     p.add_argument("--methods", type=label_list, required=True, help="comma-separated labels")
     p.add_argument(
         "--folds",
@@ -93,8 +124,70 @@ def evaluate_inputs(args) -> list:
     (outputs must replace none of them)."""
     from ccjax import io
 
-    folders = [args.directory] + ([args.mask] if args.mask else [])
-    return [args.ground_truth, *io.list_images(folder for folder in folders if os.path.isdir(folder))]
+    folders = [*args.directories] + ([args.mask] if args.mask else [])
+    return [*ground_truths(args), *io.list_images(folder for folder in folders if os.path.isdir(folder))]
+
+
+def ground_truths(args) -> list[str]:
+    """The ground-truth file of each folder: ``--ground-truth``, or ``--ground-truth-name`` inside it."""
+    if args.ground_truth is not None:
+        return [args.ground_truth]
+    return [os.path.join(directory, args.ground_truth_name) for directory in args.directories]
+
+
+def model_outputs(args) -> list[tuple[str, str]]:
+    """``("--models", file)`` of every model file and record ``--models`` will write."""
+    if args.models is None or not args.train or args.folds is None:
+        return []
+    from ccjax.experiments.folder_sets import fold_model_file
+
+    several = len(args.directories) > 1
+    folders = [
+        os.path.join(args.models, os.path.basename(os.path.normpath(directory))) if several else args.models
+        for directory in args.directories
+    ]
+    files = [fold_model_file(folder, label, k) for folder in folders for label in args.train for k in range(args.folds)]
+    return [("--models", str(path.with_suffix(suffix))) for path in files for suffix in (".eqx", ".json")]
+
+
+def check_folders(args) -> dict[str, str | None]:
+    """Refuse a missing or doubled ground truth, the one-folder outputs with several folders,
+    ``--camera-for`` naming no folder or an unknown camera, and ``--models`` without ``--train``,
+    before any work.
+
+    Returns:
+        ``{folder as given: its camera or None}``.
+    """
+    from ccjax.cli.common import check_camera_name
+
+    several = len(args.directories) > 1
+    if (args.ground_truth is None) == (args.ground_truth_name is None):
+        raise ValueError("--ground-truth: give either --ground-truth CSV (one folder) or --ground-truth-name NAME")
+    if several and args.ground_truth is not None:
+        raise ValueError(
+            f"--ground-truth: one CSV cannot serve {len(args.directories)} folders; give --ground-truth-name NAME, "
+            "the file's name inside each folder"
+        )
+    if several:
+        for option, value in (("--csv", args.csv), ("--plot", args.plot), ("--mask", args.mask)):
+            if value is not None:
+                raise ValueError(f"{option}: applies to one folder; with several, use --json")
+    if args.models is not None and args.train is None:
+        raise ValueError("--models: writes the models trained within the folds; give --train METHODS")
+    cameras: dict[str, str | None] = {directory: args.camera for directory in args.directories}
+    names = {os.path.basename(os.path.normpath(directory)): directory for directory in args.directories}
+    for entry in args.camera_for:
+        folder, equals, camera = entry.partition("=")
+        target = folder if folder in cameras else names.get(folder)
+        if not equals or not camera.strip() or target is None:
+            raise ValueError(
+                f"--camera-for: expected FOLDER=CAMERA with FOLDER one of {', '.join(sorted(names))}, got {entry!r}"
+            )
+        check_camera_name(argparse.Namespace(camera=camera.strip(), data_dir=args.data_dir))
+        cameras[target] = camera.strip()
+    if args.camera_for and args.world != "default":
+        raise ValueError("--camera-for: applies to --world default only")
+    return cameras
 
 
 def check_folds(args) -> None:
@@ -142,18 +235,22 @@ def run_evaluate(args) -> int:
     start = time.perf_counter()
     writer = start_processes()
     check_folds(args)
+    cameras = check_folders(args)
     image_options.check_labels(args.methods + (args.train or []), args)
     check_outputs(
         evaluate_inputs(args),
-        [("--json", args.json), ("--csv", args.csv), ("--plot", args.plot)],
+        [("--json", args.json), ("--csv", args.csv), ("--plot", args.plot), *model_outputs(args)],
         overwrite=args.overwrite,
     )
     check_plot(args.plot)
+    if len(args.directories) > 1:
+        return run_folder_sets(args, cameras, writer, start)
+    args.camera = cameras[args.directories[0]]
     image_options.require_camera(args.methods + (args.train or []), args)
     try:
         evaluation = evaluate_folder(
-            args.directory,
-            args.ground_truth,
+            args.directories[0],
+            ground_truths(args)[0],
             args.methods,
             world=image_options.image_world(args),
             folds=args.folds,
@@ -187,8 +284,70 @@ def run_evaluate(args) -> int:
         from ccjax.experiments.plots import plot_image_errors
 
         write_plot(args.plot, lambda file: plot_image_errors(evaluation.results, file), overwrite=args.overwrite)
+    if args.models:
+        from ccjax.experiments.folder_sets import save_fold_models
+
+        camera = image_options.image_world(args).camera.name
+        for path in save_fold_models(evaluation, args.models, camera, world_seed=args.seed, overwrite=args.overwrite):
+            print(f"wrote {path}")
     print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     raise_failures(evaluation.failures, evaluation.total)
+    return 0
+
+
+def run_folder_sets(args, cameras: dict, writer: bool, start: float) -> int:
+    """Several folders: each evaluated on its own with its camera, then the geometric means
+    (:func:`ccjax.experiments.folder_sets.evaluate_folder_sets`)."""
+    from ccjax import _cache
+    from ccjax.experiments.folder_sets import FolderSet, evaluate_folder_sets
+    from ccjax.runs.sources import raise_failures
+
+    check_camera_option(args)
+    labels = args.methods + (args.train or [])
+    if not any(cameras.values()) and args.world == "default":
+        # No folder has a camera: world-based methods would be left out of every folder.
+        image_options.require_camera(labels, args)
+    _cache.enable_compilation_cache()
+    folders = [
+        FolderSet(pathlib.Path(directory), pathlib.Path(truth), cameras[directory])
+        for directory, truth in zip(args.directories, ground_truths(args), strict=True)
+    ]
+    try:
+        evaluation = evaluate_folder_sets(
+            folders,
+            args.methods,
+            folds=args.folds,
+            train=args.train,
+            epochs=args.epochs,
+            seed=args.seed,
+            world_kind=args.world,
+            data_dir=args.data_dir,
+            preprocessing=args.preprocessing,
+            dark=image_options.dark_fraction(args),
+            read_options=image_options.read_options(args),
+            allow_missing=args.allow_missing,
+            progress=not args.no_progress,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except ValueError as error:
+        raise image_options.as_option_error(error) from None
+    if not writer:
+        return 0
+    preparation = args.preprocessing or "each method's default"
+    folds = f"; {args.folds} folds in each folder" if args.folds else ""
+    print(f"{len(folders)} folders; preprocessing: {preparation}{folds}")
+    for result in evaluation.sets:
+        if result.evaluation.check is not None:
+            print(f"{result.folder.label}: {result.evaluation.check.message()}")
+    print(evaluation.table(), flush=True)
+    if args.json:
+        write(args.json, json.dumps(evaluation.report(), indent=1), overwrite=args.overwrite)
+    if args.models:
+        for path in evaluation.save_models(args.models, seed=args.seed, overwrite=args.overwrite):
+            print(f"wrote {path}")
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    failures = [line for result in evaluation.sets for line in result.evaluation.failures]
+    raise_failures(failures, sum(result.evaluation.total for result in evaluation.sets))
     return 0
 
 

@@ -1,7 +1,9 @@
 """The development-set table of docs/photographs.md: the field's protocol on folders of
 photographs with ground truth (each set 3-fold cross-validated, the learned methods trained
 within the folds; over the NUS-8 cameras, the geometric mean of each statistic, as the field
-reports it), with training seconds per fold and inference milliseconds per image.
+reports it), with training seconds per fold and inference milliseconds per image. The protocol
+is the library's (:mod:`ccjax.experiments.folder_sets`, ``ccjax evaluate DIR DIR ...``); this
+script chooses the sets and their cameras and writes the page's table.
 
 Run::
 
@@ -24,8 +26,6 @@ import pathlib
 import shutil
 import sys
 import tempfile
-
-import numpy as np
 
 DOCS = pathlib.Path(__file__).resolve().parents[1]
 START, END = "<!-- photographs-table:start -->", "<!-- photographs-table:end -->"
@@ -53,56 +53,37 @@ def _subset(directory: pathlib.Path, count: int, scratch: pathlib.Path) -> pathl
     return target
 
 
-def evaluate_set(directory: pathlib.Path, methods, train, saturation: float, models: pathlib.Path | None) -> dict:
-    """One set's 3-fold run: ``{label: {mean, median, ..., ms_per_image, train_seconds}}``."""
-    from ccjax.experiments.folders import evaluate_folder
-    from ccjax.runs import store
-    from ccjax.runs.store import save_trained
+def evaluate_sets(directories, methods, train, saturation: float, models: pathlib.Path | None) -> dict:
+    """Each set's 3-fold run (:func:`ccjax.experiments.folder_sets.evaluate_folder_sets`, each set
+    with its camera, world-based labels left out of sets without curves):
+    ``{set: {camera, images, methods: {label: {mean, median, ..., ms_per_image, train_seconds}}}}``."""
+    from ccjax.experiments.folder_sets import FolderSet, evaluate_folder_sets
 
-    camera = CAMERAS.get(directory.name)
-    # World-based labels need the camera's curves: left out of sets without them.
-    usable = [label for label in train if camera is not None or not store.fit(label, store.world()).world_based]
-    scored = [label for label in methods if camera is not None or not store.fit(label, store.world()).world_based]
-    evaluation = evaluate_folder(
-        directory,
-        directory / "groundtruth.csv",
-        scored,
-        world=store.world("default", camera),
+    folders = [
+        FolderSet(directory, directory / "groundtruth.csv", CAMERAS.get(directory.name)) for directory in directories
+    ]
+    evaluation = evaluate_folder_sets(
+        folders,
+        methods,
         folds=3,
-        train=usable,
+        train=train,
         read_options={"saturation": saturation},
         log=lambda line: print(line, file=sys.stderr),
     )
-    results, rows = evaluation.results, {}
-    for label in results.estimates:
-        summary = results.summary(label)
-        row = {key: summary[key] for key in ("mean", "median", "trimean", "best25", "worst25") if key in summary}
-        row["ms_per_image"] = 1e3 * results.seconds.get(label, math.nan) / max(1, len(results.paths))
-        rows[label] = row
-    for label, validation in evaluation.validations.items():
-        rows[label + " trained"]["train_seconds"] = float(np.mean([fold.log.seconds for fold in validation.folds]))
-        if models is not None:
-            for fold, model in enumerate(evaluation.trained_models[label + " trained"]):
-                path = models / directory.name / f"{label}-fold{fold}.eqx"
-                path.parent.mkdir(parents=True, exist_ok=True)
-                save_trained(path, model, label=label, camera=camera or "Canon EOS 5D Mark II")
-    return {"camera": camera, "images": len(results.paths), "methods": rows}
+    if models is not None:
+        evaluation.save_models(models, overwrite=True)
+    return {
+        result.folder.label: {"camera": result.folder.camera, "images": result.images, "methods": result.rows}
+        for result in evaluation.sets
+    }
 
 
-def geometric_means(sets: dict) -> dict:
+def nus8_geometric_means(sets: dict) -> dict:
     """Per label present in every NUS-8 set: the geometric mean of each statistic over the cameras."""
+    from ccjax.experiments.folder_sets import geometric_means
+
     nus = [sets[name]["methods"] for name in NUS8 if name in sets]
-    if not nus:
-        return {}
-    labels = set.intersection(*(set(rows) for rows in nus))
-    out = {}
-    for label in sorted(labels):
-        out[label] = {
-            key: float(np.exp(np.mean([np.log(rows[label][key]) for rows in nus])))
-            for key in ("mean", "median", "trimean", "best25", "worst25")
-            if all(key in rows[label] and rows[label][key] > 0 for rows in nus)
-        }
-    return {"cameras": len(nus), "methods": out}
+    return {"cameras": len(nus), "methods": geometric_means(nus)} if nus else {}
 
 
 def table(report: dict) -> str:
@@ -148,18 +129,19 @@ def main(argv=None) -> int:
     models = pathlib.Path(args.models) if args.models else None
     report: dict = {"saturation": args.saturation, "folds": 3, "quick": args.quick, "sets": {}}
     with tempfile.TemporaryDirectory() as scratch:
-        for name in args.sets.split(","):
-            directory = root / name
-            if args.quick:
-                directory = _subset(directory, 60, pathlib.Path(scratch))
-            entry = evaluate_set(directory, args.methods.split(","), args.train.split(","), args.saturation, models)
-            report["sets"][name] = entry
-            for label, row in entry["methods"].items():
-                print(f"{name:<18}{label:<28}mean {row['mean']:6.2f}  median {row['median']:6.2f}", flush=True)
+        directories = [root / name for name in args.sets.split(",")]
+        if args.quick:
+            directories = [_subset(directory, 60, pathlib.Path(scratch)) for directory in directories]
+        report["sets"] = evaluate_sets(
+            directories, args.methods.split(","), args.train.split(","), args.saturation, models
+        )
+    for name, entry in report["sets"].items():
+        for label, row in entry["methods"].items():
+            print(f"{name:<18}{label:<28}mean {row['mean']:6.2f}  median {row['median']:6.2f}", flush=True)
     existing = DOCS / "data" / "photographs.json"
     if args.merge and existing.exists():
         report["sets"] = {**json.loads(existing.read_text())["sets"], **report["sets"]}
-    report["nus8_geometric_mean"] = geometric_means(report["sets"])
+    report["nus8_geometric_mean"] = nus8_geometric_means(report["sets"])
     text = table(report)
     print(text)
     if not args.no_write:
