@@ -125,7 +125,35 @@ def test_cross_validation_never_trains_on_the_scored_fold(start, examples, tmp_p
         store.load_model(tmp_path / "other.eqx")
 
 
+def test_stop_on_mean_keeps_the_epoch_with_the_lowest_heldout_mean(examples, default_world):
+    start = store.fit("log-chroma-mlp", default_world)
+    schedule = training.Schedule(
+        epochs=6, batch_size=8, learning_rate=0.02, patience=6, surfaces=None, relight=0.0, stop_on="mean"
+    )
+    model, log = training.fit_to_examples(start, examples, schedule, validation=examples, progress=False)
+    # The kept model's held-out mean is the lowest of the start's and every epoch's, measured here.
+    start_mean = float(np.mean(training.angular_errors(start, examples)))
+    kept_mean = float(np.mean(training.angular_errors(model, examples)))
+    assert kept_mean == pytest.approx(min([start_mean, *log.heldout_mean]), rel=1e-5)
+    assert log.best_epoch == (1 + int(np.argmin(log.heldout_mean)) if min(log.heldout_mean) < start_mean else 0)
+
+
+def test_default_schedule_is_the_family_one(start, default_world):
+    net = store.fit("log-chroma-mlp", default_world)
+    assert training.default_schedule(net) == training.LOG_CHROMA_SCHEDULE
+    assert training.default_schedule(net, seed=3, epochs=7) == training.Schedule(
+        learning_rate=training.LOG_CHROMA_SCHEDULE.learning_rate,
+        epochs=7,
+        patience=training.LOG_CHROMA_SCHEDULE.patience,
+        stop_on="mean",
+        seed=3,
+    )
+    assert training.default_schedule(start, seed=2) == training.Schedule(seed=2)
+
+
 def test_schedule_checks():
+    with pytest.raises(ValueError, match="stop_on"):
+        training.Schedule(stop_on="max")
     with pytest.raises(ValueError, match="epochs"):
         training.Schedule(epochs=0)
     with pytest.raises(ValueError, match="relight"):

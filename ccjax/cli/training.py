@@ -83,7 +83,6 @@ def run_train_net(args) -> int:
 
 
 def run_train(args) -> int:
-    import dataclasses
     from pathlib import Path
 
     if args.directory is None:
@@ -115,8 +114,11 @@ def run_train(args) -> int:
         )
         if value is not None
     }
-    schedule = dataclasses.replace(training.Schedule(seed=args.seed), **changes)
     camera = args.camera or "Canon EOS 5D Mark II"
+    from ccjax.runs import store
+
+    start = store.fit(args.method, store.world("default", camera))  # train_on_images' start (world seed 0)
+    schedule = training.default_schedule(start, seed=args.seed, **changes)
     print(f"training {args.method} on {directory} (camera {camera}, start: its spectral fit)", file=sys.stderr)
     model, log, folds = training.train_on_images(
         directory,

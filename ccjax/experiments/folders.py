@@ -12,7 +12,6 @@ check, and the JSON / CSV reports.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io as text_io
 import os
 from collections.abc import Callable, Sequence
@@ -215,7 +214,7 @@ def train_in_folds(
     folds: int,
     *,
     items: Sequence[int] | None = None,
-    schedule=None,
+    schedules: dict | None = None,
     preprocessing: str | Preprocessing | None = None,
     dark: float = DEFAULT_DARK,
     progress: bool = False,
@@ -232,7 +231,8 @@ def train_in_folds(
         fold_of: ``(N,)`` their folds.
         folds: the number of folds.
         items: the source's files to train on (default: every one).
-        schedule: the :class:`ccjax.training.Schedule` (default: its defaults).
+        schedules: ``{label: its ccjax.training.Schedule}`` (default, and for labels not in it:
+            the family's, :func:`ccjax.training.default_schedule`).
         preprocessing, dark: the inputs' preparation.
         progress: progress bars.
         log: called with a line before each label's training.
@@ -245,7 +245,6 @@ def train_in_folds(
     """
     from ccjax import training
 
-    schedule = schedule or training.Schedule()
     assignment = dict(zip(names, np.asarray(fold_of).tolist(), strict=True))
     models, validations = {}, {}
     for label, start in starts.items():
@@ -269,6 +268,7 @@ def train_in_folds(
                 )
         if log is not None:
             log(f"training {label} within {folds} folds on {len(examples)} images (start: its fit to the world)")
+        schedule = (schedules or {}).get(label) or training.default_schedule(start)
         validation, fold_models = training.cross_validate(
             start, examples, scored, schedule, method=label, progress=progress
         )
@@ -314,7 +314,8 @@ def evaluate_folder(
             camera that took the images.
         folds: K-fold cross-validation (K >= 2), or None.
         train: labels to train within the folds (needs ``folds``).
-        epochs: training epochs at most (default: the :class:`ccjax.training.Schedule`'s).
+        epochs: training epochs at most (default: each family's schedule's,
+            :func:`ccjax.training.default_schedule`).
         seed: seed of the training folds' assignment and of the training.
         preprocessing: one preprocessing for every method (None: each method's default).
         dark: the surface lists' dark rule.
@@ -402,9 +403,8 @@ def evaluate_folder(
     trained: dict = {}
     if starts:
         assert fold_of is not None and folds is not None
-        schedule = training.Schedule(seed=seed)
-        if epochs is not None:
-            schedule = dataclasses.replace(schedule, epochs=epochs)
+        changes = {"seed": seed} if epochs is None else {"seed": seed, "epochs": epochs}
+        schedules = {label: training.default_schedule(start, **changes) for label, start in starts.items()}
         trained, validations = train_in_folds(
             source,
             starts,
@@ -413,7 +413,7 @@ def evaluate_folder(
             fold_of,
             folds,
             items=keep,
-            schedule=schedule,
+            schedules=schedules,
             preprocessing=preprocessing,
             dark=dark,
             progress=progress,

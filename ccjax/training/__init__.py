@@ -22,9 +22,10 @@ from ccjax.training._folds import (
 )
 from ccjax.training._loop import Schedule, TrainingLog, angular_errors, fit_to_examples, predict, subsample
 from ccjax.training._parameters import constrain, learnable, learnable_types
-from ccjax.training._procedures import train_model
+from ccjax.training._procedures import LOG_CHROMA_SCHEDULE, default_schedule, train_model
 
 __all__ = [
+    "LOG_CHROMA_SCHEDULE",
     "CrossValidation",
     "Examples",
     "FoldResult",
@@ -34,6 +35,7 @@ __all__ = [
     "assign_folds",
     "constrain",
     "cross_validate",
+    "default_schedule",
     "fit_to_examples",
     "learnable",
     "learnable_types",

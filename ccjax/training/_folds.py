@@ -14,7 +14,7 @@ from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.io.reading import MAX_PIXELS
 from ccjax.training._data import Examples, read_examples
 from ccjax.training._loop import Schedule, TrainingLog, angular_errors
-from ccjax.training._procedures import train_model
+from ccjax.training._procedures import default_schedule, train_model
 
 
 def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:
@@ -149,15 +149,15 @@ def cross_validate(
         model: the fitted start model (the same start for every fold).
         examples: all examples.
         folds: ``(N,)`` fold index of each example (:func:`assign_folds`).
-        schedule: the training schedule (default :class:`Schedule`; its held-out split is taken
-            from the training folds).
+        schedule: the training schedule (default: the family's, :func:`default_schedule`; its
+            held-out split is taken from the training folds).
         method: the label, for the report.
         progress: progress bars.
 
     Returns:
         ``(CrossValidation, the K trained models)``.
     """
-    schedule = schedule or Schedule()
+    schedule = schedule or default_schedule(model)
     folds = np.asarray(folds)
     if folds.shape != (len(examples),):
         raise ValueError(f"folds: expected shape ({len(examples)},), got {folds.shape}")
@@ -207,7 +207,7 @@ def train_on_images(
         world_seed: that world's seed.
         folds: number of cross-validation folds (``None``: none).
         fold_seed: seed of the random fold assignment.
-        schedule: training schedule (default :class:`Schedule`).
+        schedule: training schedule (default: the family's, :func:`default_schedule`).
         out: where to save the final model (``None``: not saved).
         progress: progress bars.
         max_pixels: the pixel budget of the image headers (default 100 MP; None: no limit).
@@ -218,8 +218,8 @@ def train_on_images(
     """
     from ccjax.runs import store
 
-    schedule = schedule or Schedule()
     start = store.fit(method, store.world("default", camera, seed=world_seed))
+    schedule = schedule or default_schedule(start)
     # The inputs ``ccjax evaluate`` gives the method (its default preprocessing), as ``evaluate --train``.
     table = read_ground_truth_file(ground_truth)
     pairs = match_ground_truth(table.lights, directory)

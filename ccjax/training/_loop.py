@@ -32,12 +32,14 @@ class Schedule:
         batch_size: examples per Adam step.
         learning_rate: Adam's step size (the matrix entries are log-probabilities, so 0.05 moves a
             cell by a factor e in 20 steps).
-        patience: stop after this many epochs without a better held-out median error.
+        patience: stop after this many epochs without a better held-out error (``stop_on``).
         validation_fraction: share of the training examples held out for the per-epoch error
             (when no validation set is given).
         surfaces: surfaces per training scene, a random subset of its valid ones, redrawn every
             step (``None``: all; it bounds the step's cost and is an augmentation too).
         relight: share of every batch von Kries relit to another training example's light.
+        stop_on: the held-out statistic early stopping follows, ``"median"`` or ``"mean"``
+            angular error.
         loss: a :data:`ccjax.losses.LOSSES` illuminant loss (``"angular"``, ``"reproduction"``, ``"rg"``).
         seed: PRNG seed (split, batches, subsets, relighting).
     """
@@ -49,6 +51,7 @@ class Schedule:
     validation_fraction: float = 0.15
     surfaces: int | None = 256
     relight: float = 0.5
+    stop_on: str = "median"
     loss: str = "angular"
     seed: int = 0
 
@@ -65,6 +68,8 @@ class Schedule:
             raise ValueError(f"surfaces: expected a positive integer or None, got {self.surfaces!r}")
         if not 0 <= self.relight <= 1:
             raise ValueError(f"relight: expected a share in [0, 1], got {self.relight!r}")
+        if self.stop_on not in ("median", "mean"):
+            raise ValueError(f"stop_on: expected 'median' or 'mean', got {self.stop_on!r}")
         if self.loss not in ("angular", "reproduction", "rg"):
             raise ValueError(f"loss: expected 'angular', 'reproduction' or 'rg', got {self.loss!r}")
 
@@ -203,9 +208,10 @@ def fit_to_examples(
 
     Every epoch shuffles the examples into batches; every step draws a subset of each scene's
     surfaces and relights part of the batch (von Kries) to other training examples' lights, then
-    takes an Adam step on the loss. After each epoch the held-out median angular error is measured
-    (``validation``, else a ``schedule.validation_fraction`` split of ``examples``); the best model
-    so far is kept, and training stops after ``schedule.patience`` epochs without improvement.
+    takes an Adam step on the loss. After each epoch the held-out angular error is measured
+    (``validation``, else a ``schedule.validation_fraction`` split of ``examples``); the model with
+    the best held-out ``schedule.stop_on`` statistic so far is kept, and training stops after
+    ``schedule.patience`` epochs without improvement.
 
     Arguments:
         model: a fitted, trainable estimator (the start: e.g. the spectral fit to the camera).
@@ -245,12 +251,14 @@ def fit_to_examples(
     rng = np.random.default_rng(schedule.seed)
     log = TrainingLog(n_train=len(examples), n_heldout=len(validation))
     best = model
-    best_median = float(np.median(angular_errors(model, validation)))
-    log.initial_median = best_median
+    stop_statistic = np.median if schedule.stop_on == "median" else np.mean
+    start_errors = angular_errors(model, validation)
+    log.initial_median = float(np.median(start_errors))
+    best_value = float(stop_statistic(start_errors))
     steps_per_epoch = len(examples) // batch
     # The bar counts epochs (what the schedule, early stopping and the held-out column are in).
     bar = tqdm(total=schedule.epochs, desc="train", unit="epoch", disable=not progress)
-    bar.set_postfix(heldout_median=f"{best_median:.3f}")
+    bar.set_postfix(heldout_median=f"{log.initial_median:.3f}")
     stale = 0
     for epoch in range(schedule.epochs):
         order = rng.permutation(len(examples))
@@ -273,8 +281,9 @@ def fit_to_examples(
         log.heldout_mean.append(float(np.mean(errors)))
         bar.set_postfix(loss=f"{log.train_loss[-1]:.3f}", heldout_median=f"{median:.3f}", refresh=False)
         bar.update()
-        if median < best_median:
-            best, best_median, log.best_epoch, stale = current, median, epoch + 1, 0
+        value = float(stop_statistic(errors))
+        if value < best_value:
+            best, best_value, log.best_epoch, stale = current, value, epoch + 1, 0
         else:
             stale += 1
             if stale >= schedule.patience:

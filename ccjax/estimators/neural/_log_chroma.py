@@ -21,7 +21,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from ccjax._colour import TINY
-from ccjax.estimators.base import AbstractWorldSurfaceEstimator, Estimate, with_fallback
+from ccjax.estimators.base import AbstractSurfaceEstimator, AbstractUnblockedEstimator, Estimate, with_fallback
 from ccjax.precision import linear
 
 LOG_CHROMA_BINS = 32
@@ -94,8 +94,12 @@ class ReluMLP(eqx.Module):
 
 
 @typing.final
-class LogChromaNet(AbstractWorldSurfaceEstimator):
-    """MLP on the log-chroma histogram (module docstring).
+class LogChromaNet(AbstractSurfaceEstimator, AbstractUnblockedEstimator):
+    """MLP on the log-chroma histogram (module docstring). Everything it knows is learned from
+    photographs, so it is not world-based (the world gives only its fallback light, as for the
+    statistics methods) and, like them, it is given every usable pixel of a photograph: a
+    histogram of a few thousand pixels is a smoother input than one of the thesis' 5x5 block
+    averages.
 
     Attributes:
         net: ``bins^2 -> hidden -> hidden -> 2`` (ReLU).
@@ -108,6 +112,9 @@ class LogChromaNet(AbstractWorldSurfaceEstimator):
     bins: int = eqx.field(static=True, default=LOG_CHROMA_BINS)
     extent: float = eqx.field(static=True, default=LOG_CHROMA_EXTENT)
     estimates_brightness: ClassVar[bool] = False
+    world_based: ClassVar[bool] = False
+    default_preprocessing: ClassVar[str] = "pixels"
+    pools_pixels: ClassVar[bool] = False
 
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
         histogram = log_chroma_histogram(rgb, mask, self.bins, self.extent)
