@@ -228,6 +228,18 @@ def header(evaluation, args) -> str:
     return f"{world}; preprocessing: {preparation}{folds}"
 
 
+def evaluation_options(args) -> dict:
+    """The keyword arguments one folder's and several folders' evaluations share."""
+    shared = {name: getattr(args, name) for name in ("folds", "train", "epochs", "seed", "preprocessing")}
+    return shared | {
+        "dark": image_options.dark_fraction(args),
+        "read_options": image_options.read_options(args),
+        "allow_missing": args.allow_missing,
+        "progress": not args.no_progress,
+        "log": lambda line: print(line, file=sys.stderr),
+    }
+
+
 def run_evaluate(args) -> int:
     from ccjax.experiments.folders import evaluate_folder
     from ccjax.runs.sources import raise_failures
@@ -253,18 +265,9 @@ def run_evaluate(args) -> int:
             ground_truths(args)[0],
             args.methods,
             world=image_options.image_world(args),
-            folds=args.folds,
-            train=args.train,
-            epochs=args.epochs,
-            seed=args.seed,
-            preprocessing=args.preprocessing,
-            dark=image_options.dark_fraction(args),
-            read_options=image_options.read_options(args),
             masks=args.mask,
             check_camera=args.camera is not None or args.world != "default",
-            allow_missing=args.allow_missing,
-            progress=not args.no_progress,
-            log=lambda line: print(line, file=sys.stderr),
+            **evaluation_options(args),
         )
     except ValueError as error:
         raise image_options.as_option_error(error) from None
@@ -316,18 +319,9 @@ def run_folder_sets(args, cameras: dict, writer: bool, start: float) -> int:
         evaluation = evaluate_folder_sets(
             folders,
             args.methods,
-            folds=args.folds,
-            train=args.train,
-            epochs=args.epochs,
-            seed=args.seed,
             world_kind=args.world,
             data_dir=args.data_dir,
-            preprocessing=args.preprocessing,
-            dark=image_options.dark_fraction(args),
-            read_options=image_options.read_options(args),
-            allow_missing=args.allow_missing,
-            progress=not args.no_progress,
-            log=lambda line: print(line, file=sys.stderr),
+            **evaluation_options(args),
         )
     except ValueError as error:
         raise image_options.as_option_error(error) from None
