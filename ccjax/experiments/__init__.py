@@ -10,9 +10,11 @@
 * camera studies (:mod:`ccjax.experiments._cameras`) -- the camera list, the SFU-321 camera check, the
   sharpness study and the ground truth's check against a camera (:func:`curve_check`).
 
-The chapter-specific experiments (``chapter5``, ``indexing``, ``evaluation``) are submodules
-imported on their own (``from ccjax.experiments import chapter5``), not from here, so importing
-this package stays cheap.
+The chapter-specific experiments (``chapter5``, ``indexing``, ``evaluation``) and the evaluation
+of folders of photographs (``folders``; ``folder_sets``: the field's protocol over several
+cameras' folders, ``ccjax evaluate DIR DIR ...``) are submodules imported on their own
+(``from ccjax.experiments import chapter5``), not from here, so importing this package stays
+cheap.
 """
 
 from ccjax.experiments._cameras import (
