@@ -44,11 +44,20 @@ class Examples(eqx.Module):
         return Examples(self.x[indices], self.mask[indices], self.illuminant[indices], names)
 
 
-def _stack(inputs, masks, input_kind: str) -> tuple[np.ndarray, np.ndarray]:
+def stack_inputs(inputs, masks, input_kind: str) -> tuple[np.ndarray, np.ndarray]:
     """Stack per-image inputs into fixed-shape arrays: images must share one size; surface lists
     are padded (invalid slots) to the longest one (a surface model given whole images, the
     ``pixels`` rule, gets each image's pixels as a list, as :func:`ccjax.preprocessing.run_model`
-    gives it them)."""
+    gives it them).
+
+    Arguments:
+        inputs: per image, ``(H, W, 3)`` or ``(P, 3)`` what :func:`ccjax.preprocessing.prepare_input` gave.
+        masks: per image, its mask.
+        input_kind: the estimator's input kind (``"surfaces"`` or ``"image"``).
+
+    Returns:
+        ``(x, mask)``: ``(N, H, W, 3)`` / ``(N, H, W)`` images or ``(N, P, 3)`` / ``(N, P)`` padded lists.
+    """
     if input_kind == "image":
         shapes = {x.shape for x in inputs}
         if len(shapes) > 1:
@@ -117,7 +126,7 @@ def source_examples(
         kept.append(item.index)
     if not kept:
         raise ValueError(f"images: none of the {len(chosen)} images could be used for training")
-    x, mask = _stack(inputs, valid, input_kind)
+    x, mask = stack_inputs(inputs, valid, input_kind)
     light = jnp.asarray(illuminants[kept])
     return Examples(jnp.asarray(x), jnp.asarray(mask), light, tuple(names[i] for i in kept)), failures
 

@@ -142,6 +142,7 @@ def cross_validate(
     *,
     method: str = "",
     progress: bool = True,
+    fine_tune: bool = False,
 ) -> tuple[CrossValidation, list[AbstractEstimator]]:
     """Train ``model`` once per fold on the other folds' examples and score it on the fold.
 
@@ -153,6 +154,7 @@ def cross_validate(
             held-out split is taken from the training folds).
         method: the label, for the report.
         progress: progress bars.
+        fine_tune: ``model`` was pretrained; each fold refines it (:func:`train_model`).
 
     Returns:
         ``(CrossValidation, the K trained models)``.
@@ -167,7 +169,7 @@ def cross_validate(
     for fold in np.unique(folds):
         test = np.flatnonzero(folds == fold)
         train = np.flatnonzero(folds != fold)  # never the scored fold (early stopping splits these)
-        trained, log = train_model(model, examples.take(train), schedule, progress=progress)
+        trained, log = train_model(model, examples.take(train), schedule, progress=progress, fine_tune=fine_tune)
         errors = angular_errors(trained, examples.take(test))
         result.folds.append(
             FoldResult(int(fold), [names[i] for i in test], errors, untrained[test], log, [names[i] for i in train])

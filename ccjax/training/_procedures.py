@@ -27,14 +27,16 @@ training images only (``validation_fraction``), so nothing is chosen on a scored
 
 
 def _fit_ffcc(
-    model: FFCC, examples: Examples, schedule: Schedule, validation: Examples | None, progress: bool
+    model: FFCC, examples: Examples, schedule: Schedule, validation: Examples | None, progress: bool, fine_tune: bool
 ) -> tuple[AbstractEstimator, TrainingLog]:
     """FFCC's L-BFGS fit on every training example (its regularisers, not early stopping, keep it
-    from overfitting, so nothing is held out; the schedule's epochs and steps do not apply)."""
+    from overfitting, so nothing is held out; the schedule's epochs and steps do not apply); a
+    fine-tune centres the regulariser on ``model`` (:func:`ccjax.estimators.ffcc.train`'s prior)."""
     cpu_start = time.process_time()
     if examples.x.ndim != 4:
         raise ValueError(f"examples: FFCC trains on images (N, H, W, 3), got shape {tuple(examples.x.shape)}")
-    trained, record = train_ffcc(model, examples.x, examples.mask, examples.illuminant)
+    prior = model if fine_tune else None
+    trained, record = train_ffcc(model, examples.x, examples.mask, examples.illuminant, prior=prior)
     log = TrainingLog(train_loss=record.losses, n_train=len(examples), n_heldout=0)
     log.seconds, log.cpu_seconds = record.seconds, time.process_time() - cpu_start
     return trained, log
@@ -69,6 +71,7 @@ def train_model(
     *,
     validation: Examples | None = None,
     progress: bool = True,
+    fine_tune: bool = False,
 ) -> tuple[AbstractEstimator, TrainingLog]:
     """Train ``model`` on ``examples`` with its family's procedure.
 
@@ -79,6 +82,8 @@ def train_model(
             :func:`default_schedule`; families with their own solver ignore it).
         validation: held-out examples for the Adam loop's early stopping.
         progress: progress bars.
+        fine_tune: ``model`` was pretrained (:mod:`ccjax.training.pretraining`) and the fit refines
+            it: FFCC's regulariser is centred on it; the Adam loop starts from ``model`` either way.
 
     Returns:
         ``(trained model, TrainingLog)``.
@@ -86,5 +91,5 @@ def train_model(
     schedule = schedule or default_schedule(model)
     for kind, procedure in _PROCEDURES.items():
         if isinstance(model, kind):
-            return procedure(model, examples, schedule, validation, progress)
+            return procedure(model, examples, schedule, validation, progress, fine_tune)
     return fit_to_examples(model, examples, schedule, validation=validation, progress=progress)

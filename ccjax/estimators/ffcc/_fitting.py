@@ -39,6 +39,7 @@ __all__ = [
     "histograms",
     "loss",
     "preconditioner",
+    "to_latent",
     "train",
 ]
 
@@ -132,6 +133,21 @@ def from_latent(latent: Float[Array, "... n n"], scale: Float[Array, "... n n"])
     return jnp.fft.irfft2(_latent_fft(latent, scale), s=latent.shape[-2:]).astype(latent.dtype)
 
 
+def to_latent(maps: Float[Array, "... n n"], scale: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
+    """The preconditioned variables of ``maps``: the inverse of :func:`from_latent`.
+
+    Arguments:
+        maps: one or more ``n x n`` maps in the histogram's domain.
+        scale: :func:`preconditioner` of their size and weights.
+
+    Returns:
+        ``latent`` with ``from_latent(latent, scale) == maps``.
+    """
+    spectrum = jnp.fft.rfft2(maps)
+    spectrum = spectrum / scale[..., : spectrum.shape[-1]].astype(spectrum.dtype)
+    return jnp.fft.irfft2(spectrum, s=maps.shape[-2:]).astype(maps.dtype)
+
+
 def histograms(
     model: FFCC, images: Float[Array, "N H W 3"], masks: Bool[Array, "N H W"], chunk: int = 256
 ) -> Float[Array, "N 2 n n"]:
@@ -216,10 +232,12 @@ def loss(
     diagonal: float,
     bin_size: Float[Array, ""] | float,
     counted: Float[Array, " N"] | None = None,
+    anchor: tuple[Float[Array, "2 n n"], Float[Array, "n n"]] | None = None,
 ) -> Float[Array, ""]:
     """FFCC's training objective in the preconditioned variables (FFCC §3-§4): the mean over the
     images of ``weights . (cross-entropy, von Mises NLL, expected squared error)`` plus
-    ``0.5 ||latent||^2`` (the regulariser).
+    ``0.5 ||latent - anchor||^2`` (the regulariser, centred on a prior model's variables, or on
+    zero without one).
 
     Arguments:
         latent: ``(filters (2, n, n), bias (n, n))`` preconditioned variables.
@@ -231,6 +249,7 @@ def loss(
         bin_size: log-chroma width of a bin.
         counted: ``(N,)`` weight of each image in the mean (None: 1 each); padding images
             weigh 0.
+        anchor: the prior model's preconditioned variables (None: zero).
 
     Returns:
         The objective.
@@ -252,13 +271,17 @@ def loss(
 
     per_image = jax.vmap(one)(histogram_fft, truth)
     data = jnp.mean(per_image) if counted is None else jnp.sum(counted * per_image) / jnp.sum(counted)
+    if anchor is not None:
+        filters_latent, bias_latent = filters_latent - anchor[0], bias_latent - anchor[1]
     return data + 0.5 * (jnp.sum(filters_latent**2) + jnp.sum(bias_latent**2))
 
 
 @eqx.filter_jit
-def _minimise(latent, scales, histogram_fft, truth, counted, weights, diagonal, bin_size, iterations, memory: int):
+def _minimise(
+    latent, anchor, scales, histogram_fft, truth, counted, weights, diagonal, bin_size, iterations, memory: int
+):
     def objective(params):
-        return loss(params, scales, histogram_fft, truth, weights, diagonal, bin_size, counted)
+        return loss(params, scales, histogram_fft, truth, weights, diagonal, bin_size, counted, anchor)
 
     solver = optax.lbfgs(memory_size=memory)
     value_and_grad = optax.value_and_grad_from_state(objective)
@@ -280,8 +303,17 @@ def train(
     masks: Bool[Array | np.ndarray, "N H W"],
     illuminants: Float[Array | np.ndarray, "N 3"],
     hyperparameters: Hyperparameters = Hyperparameters(),
+    prior: FFCC | None = None,
 ) -> tuple[FFCC, TrainingRecord]:
     """Train FFCC on images with ground truth (module docstring).
+
+    With ``prior`` (a model trained elsewhere, e.g. on rendered images,
+    :mod:`ccjax.training.pretraining`) the fit keeps the prior's bin size, starts from the
+    prior's filters and bias map and centres the regulariser on them: ``0.5 ||z - z_prior||^2``
+    in the preconditioned variables, a Gaussian prior whose mean is the prior model and whose
+    covariance is FFCC's regulariser (the "L2-SP" transfer of Li, Grandvalet & Davoine, ICML
+    2018, in FFCC's parametrisation). The filters act by convolution, so a grid re-centred on
+    the training lights by whole bins moves only the bias map (rolled by the same bins).
 
     Arguments:
         model: the start (its bin count is kept and its bin size the narrowest considered,
@@ -291,12 +323,14 @@ def train(
         masks: ``(N, H, W)`` usable pixels.
         illuminants: ``(N, 3)`` the true lights (camera RGB, any scale, every channel positive).
         hyperparameters: the :class:`Hyperparameters`.
+        prior: a trained FFCC of ``model``'s bin count to fine-tune (None: train from zero).
 
     Returns:
         ``(trained FFCC, TrainingRecord)``.
 
     Raises:
-        ValueError: no image, or a light with a channel at or below 0.
+        ValueError: no image, a light with a channel at or below 0, or a prior of another bin
+            count.
     """
     start = time.perf_counter()
     illuminants = jnp.asarray(illuminants)
@@ -306,8 +340,11 @@ def train(
         raise ValueError("illuminants: every channel of every training light must be positive")
     h = hyperparameters
     n = model.bins
+    if prior is not None and prior.bins != n:
+        raise ValueError(f"prior: expected a model of {n} bins (the model's), got {prior.bins}")
     truth_uv = log_chroma(illuminants)
-    size = jnp.asarray(fit_grid(truth_uv, n, float(model.bin_size)), model.bias.dtype)
+    grid = float(model.bin_size) if prior is None else float(prior.bin_size)
+    size = jnp.asarray(grid if prior is not None else fit_grid(truth_uv, n, grid), model.bias.dtype)
     origin = fit_origin(truth_uv, n, size).astype(model.bias.dtype)
     model = eqx.tree_at(lambda m: (m.origin, m.bin_size), model, (origin, size))
     histogram_fft = jnp.fft.rfft2(histograms(model, jnp.asarray(images), jnp.asarray(masks)))
@@ -324,6 +361,12 @@ def train(
         preconditioner(n, h.bias_tv, h.bias_l2),
     )
     latent = (jnp.zeros((2, n, n), model.bias.dtype), jnp.zeros((n, n), model.bias.dtype))
+    anchor = None
+    if prior is not None:
+        shift = jnp.round((origin - prior.origin) / size).astype(jnp.int32)
+        bias = jnp.roll(prior.bias, (-int(shift[0]), -int(shift[1])), axis=(0, 1))
+        anchor = (to_latent(prior.filters, scales[0]), to_latent(bias, scales[1]))
+        latent = anchor
     losses = []
     passes = ((h.pretrain_iterations, [h.crossent, 0.0, 0.0]), (h.iterations, [0.0, h.vonmises, h.expected_error]))
     for iterations, weights in passes:
@@ -331,6 +374,7 @@ def train(
             continue
         latent, value = _minimise(
             latent,
+            anchor,
             scales,
             histogram_fft,
             truth,

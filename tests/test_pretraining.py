@@ -1,0 +1,148 @@
+"""Pretraining from spectra: the renderer against a NumPy image formation, FFCC's fine-tune from a
+prior (closed-form properties), and a small end-to-end run on rendered "photographs"."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from ccjax import metrics, training
+from ccjax.estimators.ffcc import Hyperparameters, init_ffcc
+from ccjax.estimators.ffcc import train as train_ffcc
+from ccjax.estimators.ffcc.fitting import from_latent, loss, preconditioner, to_latent
+from ccjax.preprocessing import Preprocessing
+from ccjax.scenes import ShotNoise, Specular
+from ccjax.spectra import WAVELENGTHS
+from ccjax.training.pretraining import CODES, Pretraining, fine_tune, pretrain, render_examples, render_images
+
+CAMERA = "Canon EOS 600D"
+
+
+def _chroma(rgb: np.ndarray) -> np.ndarray:
+    return rgb / np.sum(rgb, axis=-1, keepdims=True)
+
+
+def test_rendered_pixels_are_camera_responses_to_light_times_reflectance(default_world):
+    """Without highlights or noise, every usable pixel is ``shade * sum_lambda S(l) E(l) R(l)``
+    for one of the world's reflectances under the image's light, ``shade`` in the shading range
+    times the exposure (NumPy image formation, Barnard 1999 §4.2), and the light lies near the
+    Planckian locus (Planck's law, computed here)."""
+    setting = Pretraining(CAMERA, images=12, height=16, width=16, patches=6, specular=Specular(0.0, 0.0))
+    setting = dataclasses.replace(setting, noise=ShotNoise(a=0.0, b=0.0))
+    rgb, clipped, lights = (np.asarray(a) for a in render_images(setting))
+    rgb, lights = rgb.astype(np.float64), lights.astype(np.float64)
+    world = training.pretraining.store.world("default", CAMERA)
+    sensors = np.asarray(world.camera.sensors, np.float64)
+    spectra = np.asarray(world.test_illuminants, np.float64)
+    reflectances = np.asarray(world.reflectances, np.float64)
+    whites = spectra @ sensors
+    # The codes are whole steps of the 16-bit scale.
+    np.testing.assert_allclose(rgb * CODES, np.round(rgb * CODES), atol=1e-3)
+    metres = WAVELENGTHS * 1e-9
+    kelvin = np.arange(2000.0, 20001.0, 50.0)
+    planck = (metres**-5 / np.expm1(1.4388e-2 / (metres * kelvin[:, None]))) @ sensors
+    locus = np.stack([np.log(planck[:, 1] / planck[:, 0]), np.log(planck[:, 1] / planck[:, 2])], axis=-1)
+    for image, clip, light in zip(rgb, clipped, lights, strict=True):
+        which = np.argmin(np.linalg.norm(_chroma(whites) - _chroma(light), axis=-1))
+        np.testing.assert_allclose(_chroma(whites[which]), _chroma(light), atol=1e-5)
+        uv = np.log(light[1] / light[[0, 2]])
+        assert np.min(np.linalg.norm(locus - uv, axis=-1)) <= setting.locus + 1e-6
+        expected = (reflectances * spectra[which]) @ sensors  # (S, 3) every surface under the light
+        usable = ~clip & np.all(image > 0.02, axis=-1)
+        pixels = image[usable]
+        assert len(pixels) > 0
+        # Each pixel on the white's scale: its ratio to a surface's response is one shade for all channels.
+        scaled = expected / whites[which] * light  # (S, 3) responses on the image's white scale
+        ratio = pixels[:, None, :] / scaled[None, :, :]  # (P, S, 3)
+        spread = np.max(ratio, axis=-1) / np.min(ratio, axis=-1)
+        best = np.argmin(spread, axis=1)
+        assert np.all(np.min(spread, axis=1) < 1.01)
+        shade = ratio[np.arange(len(pixels)), best].mean(axis=-1)
+        assert np.all((shade > 0.3 - 0.01) & (shade < 1.0 + 0.01))
+
+
+def test_rendered_examples_get_the_photographs_clip_rule(default_world):
+    setting = Pretraining(CAMERA, images=8, height=16, width=16, patches=6, exposure=(1.0, 1.0))
+    rgb, clipped, _ = (np.asarray(a) for a in render_images(setting))
+    examples = render_examples(setting, Preprocessing.parse("pixels"), "image")
+    # The pixels rule: usable = not clipped and no zero channel (ccjax.preprocessing.usable_pixels).
+    np.testing.assert_array_equal(np.asarray(examples.mask), ~clipped & np.all(rgb > 0, axis=-1))
+    assert np.any(clipped) and examples.x.shape == (8, 16, 16, 3)
+
+
+def test_pretraining_settings_are_checked():
+    with pytest.raises(ValueError, match="images"):
+        Pretraining(CAMERA, images=0)
+    with pytest.raises(ValueError, match="exposure"):
+        Pretraining(CAMERA, exposure=(1.0, 0.0))
+
+
+def test_latent_round_trip_and_anchored_regulariser():
+    rng = np.random.default_rng(3)
+    n = 8
+    scale = preconditioner(n, 0.3, 0.02)
+    field = jnp.asarray(rng.normal(size=(n, n)), jnp.float32)
+    np.testing.assert_allclose(np.asarray(from_latent(to_latent(field, scale), scale)), np.asarray(field), atol=1e-4)
+    scales = (jnp.stack([scale, scale]), scale)
+    latent = (jnp.asarray(rng.normal(size=(2, n, n)), jnp.float32), jnp.asarray(rng.normal(size=(n, n)), jnp.float32))
+    histogram_fft = jnp.fft.rfft2(jnp.asarray(rng.uniform(size=(2, 2, n, n)), jnp.float32))
+    truth = jnp.asarray(rng.uniform(1, n - 2, (2, 2)), jnp.float32)
+    zero = jnp.zeros(3, jnp.float32)
+    # Data weights 0: the objective is the regulariser alone, 0.5 ||latent - anchor||^2.
+    assert float(loss(latent, scales, histogram_fft, truth, zero, 1.0, 0.1, anchor=latent)) == pytest.approx(0.0)
+    expected = 0.5 * sum(float(np.sum(np.asarray(x, np.float64) ** 2)) for x in latent)
+    assert float(loss(latent, scales, histogram_fft, truth, zero, 1.0, 0.1)) == pytest.approx(expected, rel=1e-5)
+
+
+def _lights(count: int, rng) -> np.ndarray:
+    t = rng.uniform(-1, 1, count)
+    return np.stack([np.exp(0.4 * t), np.full(count, 1.5), np.exp(-0.4 * t)], axis=1).astype(np.float32)
+
+
+def test_fine_tune_without_iterations_is_the_prior_on_the_recentred_grid():
+    """Zero iterations: the fine-tuned model is the prior, its grid re-centred on the new lights
+    by whole bins: filters unchanged, the bias map rolled by the same bins (np.roll)."""
+    rng = np.random.default_rng(4)
+    n = 16
+    prior = init_ffcc(bins=n, bin_size=1 / 16)
+    prior = eqx.tree_at(
+        lambda m: (m.filters, m.bias),
+        prior,
+        (jnp.asarray(rng.normal(size=(2, n, n)), jnp.float32), jnp.asarray(rng.normal(size=(n, n)), jnp.float32)),
+    )
+    lights = _lights(6, rng)
+    images = rng.uniform(0.05, 0.9, (6, 8, 8, 3)).astype(np.float32)
+    masks = np.ones((6, 8, 8), bool)
+    none = Hyperparameters(pretrain_iterations=0, iterations=0)
+    tuned, _ = train_ffcc(init_ffcc(bins=n, bin_size=1 / 64), images, masks, lights, none, prior=prior)
+    assert float(tuned.bin_size) == pytest.approx(1 / 16)  # the prior's, not the start's
+    shift = np.round((np.asarray(tuned.origin) - np.asarray(prior.origin)) * 16).astype(int)
+    assert np.any(shift != 0)
+    np.testing.assert_allclose(np.asarray(tuned.filters), np.asarray(prior.filters), atol=1e-4)
+    np.testing.assert_allclose(np.asarray(tuned.bias), np.roll(np.asarray(prior.bias), -shift, axis=(0, 1)), atol=1e-4)
+    with pytest.raises(ValueError, match="prior"):
+        train_ffcc(init_ffcc(bins=8), images, masks, lights, none, prior=prior)
+
+
+def test_pretraining_helps_ffcc_with_few_photographs(default_world):
+    """Rendered "photographs" (another seed of the renderer): FFCC fine-tuned from its pretraining
+    on 8 of them beats FFCC trained from scratch on the same 8, on 96 held out."""
+    pixels = Preprocessing.parse("pixels")
+    setting = Pretraining(CAMERA, images=256, height=24, width=24, patches=12)
+    photos = render_examples(dataclasses.replace(setting, images=104, seed=7), pixels, "image")
+    start = init_ffcc()
+    pretrained, log = pretrain(start, setting, pixels)
+    assert len(log.train_loss) == 2 and np.all(np.isfinite(log.train_loss))
+    few, held = photos.take(np.arange(8)), photos.take(np.arange(8, 104))
+    tuned, _ = fine_tune(pretrained, few)
+    scratch, _ = training.train_model(start, few, progress=False)
+    errors = {name: training.angular_errors(model, held) for name, model in [("tuned", tuned), ("scratch", scratch)]}
+    assert all(np.all(np.isfinite(e)) for e in errors.values())
+    assert np.median(errors["tuned"]) < 0.8 * np.median(errors["scratch"])
+    sums = jnp.sum(jnp.where(held.mask[..., None], held.x, 0.0), axis=(1, 2))
+    grey = np.asarray(metrics.angular_error(sums, held.illuminant))
+    assert np.median(errors["tuned"]) < 0.5 * np.median(grey)
