@@ -146,3 +146,42 @@ def test_pretraining_helps_ffcc_with_few_photographs(default_world):
     sums = jnp.sum(jnp.where(held.mask[..., None], held.x, 0.0), axis=(1, 2))
     grey = np.asarray(metrics.angular_error(sums, held.illuminant))
     assert np.median(errors["tuned"]) < 0.5 * np.median(grey)
+
+
+@pytest.mark.slow
+def test_evaluate_train_pretrains_then_fine_tunes_in_every_fold(tmp_path, monkeypatch, capsys):
+    """``ccjax evaluate --train FFCC --pretrain-camera``: FFCC is pretrained once on rendered
+    images, and every fold's fit is a fine-tune of that model (its prior)."""
+    import ccjax.training.procedures as procedures
+    from ccjax import cli, io
+
+    rgb, _, lights = render_images(Pretraining(CAMERA, images=12, height=24, width=24, patches=8, seed=3))
+    truth = io.write_dataset(tmp_path / "set", np.asarray(rgb), np.asarray(lights))
+    priors = []
+    original = procedures.train_ffcc
+
+    def spy(model, images, masks, illuminants, prior=None):
+        priors.append(prior)
+        return original(model, images, masks, illuminants, prior=prior)
+
+    monkeypatch.setattr(procedures, "train_ffcc", spy)
+    argv = ["evaluate", str(tmp_path / "set"), "--ground-truth", str(truth), "--methods", "GW", "--folds", "2"]
+    argv += ["--train", "FFCC", "--pretrain-camera", CAMERA, "--pretrain-images", "64", "--no-progress"]
+    assert cli.main([*argv, "--json", str(tmp_path / "report.json")]) == 0
+    assert "pretrained on 64 images rendered with Canon EOS 600D" in capsys.readouterr().err
+    # The pretraining fit (no prior), then one fine-tune per fold, each from that same model.
+    assert priors[0] is None and len(priors) == 3
+    assert priors[1] is not None and priors[1] is priors[2]
+    with pytest.raises(SystemExit, match="applies to --train"):
+        cli.main(["evaluate", str(tmp_path / "set"), "--ground-truth", str(truth), "--methods", "GW"] + argv[10:12])
+    with pytest.raises(SystemExit, match="--pretrain-images"):
+        cli.main([*argv[:10], "--pretrain-images", "64", "--no-progress"])
+
+
+def test_train_refuses_pretrain_images_without_a_camera(tmp_path):
+    from ccjax import cli
+
+    with pytest.raises(SystemExit, match="--pretrain-images: applies with --pretrain-camera only"):
+        cli.main(["train", str(tmp_path), "--method", "FFCC", "--pretrain-images", "64"])
+    with pytest.raises(SystemExit, match="--pretrain-images: expected a positive integer"):
+        cli.main(["train", str(tmp_path), "--method", "FFCC", "--pretrain-camera", CAMERA, "--pretrain-images", "0"])

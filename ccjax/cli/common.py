@@ -30,6 +30,41 @@ def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -
     parser.add_argument("--seed", type=int, default=0, help="seed of the illuminant sets and scenes")
 
 
+def pretrain_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--pretrain-camera`` and ``--pretrain-images``: pretraining from spectra
+    (:mod:`ccjax.training.pretraining`)."""
+    parser.add_argument(
+        "--pretrain-camera",
+        default=None,
+        metavar="CAMERA",
+        help="pretrain on Mondrians rendered with this embedded camera's curves (the world's lights near its "
+        "Planckian locus, highlights, noise, clipping, the photographs' preprocessing), then fine-tune on the "
+        "photographs (FFCC: its regulariser centred on the pretrained model; the Adam loop: started from it)",
+    )
+    parser.add_argument(
+        "--pretrain-images",
+        type=int,
+        default=None,
+        help="with --pretrain-camera: rendered images (default: 2000; cached)",
+    )
+
+
+def pretraining_setting(args):
+    """The :class:`ccjax.training.pretraining.Pretraining` of ``--pretrain-camera`` and
+    ``--pretrain-images``, or None without them; refuses ``--pretrain-images`` alone."""
+    if args.pretrain_camera is None:
+        if args.pretrain_images is not None:
+            raise SystemExit("--pretrain-images: applies with --pretrain-camera only")
+        return None
+    from ccjax.training.pretraining import Pretraining
+
+    try:
+        images = {} if args.pretrain_images is None else {"images": args.pretrain_images}
+        return Pretraining(args.pretrain_camera, **images)
+    except ValueError as error:
+        raise SystemExit(f"--pretrain-{error}") from None
+
+
 def check_camera_option(args) -> None:
     if args.world == "barnard1999" and args.camera:
         raise SystemExit("--camera applies to --world default only (barnard1999 is the Sony DXC-930 world)")

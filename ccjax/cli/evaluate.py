@@ -17,6 +17,8 @@ from ccjax.cli.common import (
     check_plot,
     label_list,
     overwrite_argument,
+    pretrain_arguments,
+    pretraining_setting,
     start_processes,
     world_arguments,
     write,
@@ -115,6 +117,7 @@ def add_evaluate(sub) -> None:
     )
     overwrite_argument(p, "--json and --csv files")
     world_arguments(p)
+    pretrain_arguments(p)
     image_options.image_arguments(p)
     p.set_defaults(func=run_evaluate)
 
@@ -255,6 +258,11 @@ def run_evaluate(args) -> int:
         overwrite=args.overwrite,
     )
     check_plot(args.plot)
+    pretraining = pretraining_setting(args)
+    if pretraining is not None and args.train is None:
+        raise SystemExit("--pretrain-camera: applies to --train (the labels trained within the folds)")
+    if pretraining is not None and len(args.directories) > 1:
+        raise SystemExit("--pretrain-camera: applies to one folder (its camera's curves render the images)")
     if len(args.directories) > 1:
         return run_folder_sets(args, cameras, writer, start)
     args.camera = cameras[args.directories[0]]
@@ -268,6 +276,7 @@ def run_evaluate(args) -> int:
             masks=args.mask,
             check_camera=args.camera is not None or args.world != "default",
             **evaluation_options(args),
+            pretraining=pretraining,
         )
     except ValueError as error:
         raise image_options.as_option_error(error) from None

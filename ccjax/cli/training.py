@@ -7,7 +7,15 @@ from __future__ import annotations
 import os
 import sys
 
-from ccjax.cli.common import build_world, check_outputs, overwrite_argument, start_processes, world_arguments
+from ccjax.cli.common import (
+    build_world,
+    check_outputs,
+    overwrite_argument,
+    pretrain_arguments,
+    pretraining_setting,
+    start_processes,
+    world_arguments,
+)
 from ccjax.cli.image_options import max_pixels_argument
 
 NETS = ("NEURAL-NET", "SP-NEURAL-NET")
@@ -37,6 +45,7 @@ def add_train(sub) -> None:
     p.add_argument("--steps", type=int, default=None, help="nets only: optimiser steps (default: 3000)")
     p.add_argument("--specular", action="store_true", help="nets only: same as --method SP-NEURAL-NET")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    pretrain_arguments(p)
     max_pixels_argument(p)
     overwrite_argument(p, "--out model file and its .json record")
     world_arguments(p)
@@ -96,6 +105,7 @@ def run_train(args) -> int:
         raise SystemExit(
             "train: --world applies to the nets' synthetic training; images train from --camera's default world"
         )
+    pretraining = pretraining_setting(args)
     start_processes()
     from ccjax import training
     from ccjax.estimators import registry
@@ -132,6 +142,7 @@ def run_train(args) -> int:
         progress=not args.no_progress,
         max_pixels=args.max_pixels,
         overwrite=args.overwrite,
+        pretraining=pretraining,
     )
     del model
     if folds is not None:

@@ -219,6 +219,7 @@ def train_in_folds(
     dark: float = DEFAULT_DARK,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
+    pretraining=None,
 ) -> tuple[dict[str, list[AbstractEstimator]], dict]:
     """Each start trained within the folds (:func:`ccjax.training.cross_validate`, never on the fold
     it scores) on exactly the inputs the evaluation gives it (:func:`ccjax.training.source_examples`).
@@ -236,6 +237,9 @@ def train_in_folds(
         preprocessing, dark: the inputs' preparation.
         progress: progress bars.
         log: called with a line before each label's training.
+        pretraining: a :class:`ccjax.training.pretraining.Pretraining`: each start is first
+            pretrained on images rendered from spectra and then fine-tuned within the folds
+            (None: trained from its fit to the world).
 
     Returns:
         ``({"<label> trained": [model of fold 0, ...]}, {label: CrossValidation})``.
@@ -244,6 +248,7 @@ def train_in_folds(
         ValueError: a fold whose training set (the other folds) has too few usable images.
     """
     from ccjax import training
+    from ccjax.training.pretraining import pretrain
 
     assignment = dict(zip(names, np.asarray(fold_of).tolist(), strict=True))
     models, validations = {}, {}
@@ -266,11 +271,15 @@ def train_in_folds(
                     f"folds: fold {fold}'s training set (the other folds) has {trained_on} usable images; training "
                     f"needs at least {MIN_TRAINING_IMAGES} (fewer folds or more images)"
                 )
-        if log is not None:
-            log(f"training {label} within {folds} folds on {len(examples)} images (start: its fit to the world)")
         schedule = (schedules or {}).get(label) or training.default_schedule(start)
+        origin = "its fit to the world"
+        if pretraining is not None:
+            start, _ = pretrain(start, pretraining, resolve(start, preprocessing), schedule, progress=progress)
+            origin = f"pretrained on {pretraining.images} images rendered with {pretraining.camera}'s curves"
+        if log is not None:
+            log(f"training {label} within {folds} folds on {len(examples)} images (start: {origin})")
         validation, fold_models = training.cross_validate(
-            start, examples, scored, schedule, method=label, progress=progress
+            start, examples, scored, schedule, method=label, progress=progress, fine_tune=pretraining is not None
         )
         models[label + TRAINED_SUFFIX], validations[label] = fold_models, validation
     return models, validations
@@ -295,6 +304,7 @@ def evaluate_folder(
     progress: bool = False,
     log: Callable[[str], None] | None = None,
     max_pixels: int | None = MAX_PIXELS,
+    pretraining=None,
 ) -> FolderEvaluation:
     """Run methods on every image a ground-truth CSV lists and score them (angular error).
 
@@ -329,6 +339,8 @@ def evaluate_folder(
         log: called with a line for each warning and training step (e.g. ``print`` to stderr).
         max_pixels: the pixel budget: a file whose header claims more pixels is refused (a
             failure record) before anything is allocated for it (default 100 MP; None: no limit).
+        pretraining: with ``train``, pretrain each start from spectra before its training
+            (:func:`train_in_folds`).
 
     Returns:
         :class:`FolderEvaluation`.
@@ -418,6 +430,7 @@ def evaluate_folder(
             dark=dark,
             progress=progress,
             log=log,
+            pretraining=pretraining,
         )
         models.update(trained)
     run = run_models(

@@ -12,8 +12,10 @@ import numpy as np
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.io.reading import MAX_PIXELS
+from ccjax.preprocessing import resolve
 from ccjax.training._data import Examples, read_examples
 from ccjax.training._loop import Schedule, TrainingLog, angular_errors
+from ccjax.training.pretraining import Pretraining, pretrain
 from ccjax.training._procedures import default_schedule, train_model
 
 
@@ -192,6 +194,7 @@ def train_on_images(
     progress: bool = True,
     max_pixels: int | None = MAX_PIXELS,
     overwrite: bool = True,
+    pretraining: Pretraining | None = None,
 ) -> tuple[AbstractEstimator, TrainingLog, CrossValidation | None]:
     """Train the estimator ``method`` on a folder of images with ground truth.
 
@@ -214,6 +217,8 @@ def train_on_images(
         progress: progress bars.
         max_pixels: the pixel budget of the image headers (default 100 MP; None: no limit).
         overwrite: replace an existing ``out`` (and its record).
+        pretraining: pretrain the start on images rendered from spectra, then fine-tune it on the
+            photographs (:mod:`ccjax.training.pretraining`; None: no pretraining).
 
     Returns:
         ``(trained model, its TrainingLog, CrossValidation or None)``.
@@ -236,13 +241,20 @@ def train_on_images(
     )
     if failures:
         raise ValueError(f"{len(failures)} images cannot be used for training:\n  " + "\n  ".join(failures.values()))
+    tune = pretraining is not None
+    if pretraining is not None:
+        start, _ = pretrain(start, pretraining, resolve(start), schedule, progress=progress)
     validation = None
     if folds is not None:
         assignment = assign_folds(examples.names, folds, seed=fold_seed, given=table.folds)
-        validation, _ = cross_validate(start, examples, assignment, schedule, method=method, progress=progress)
-    model, log = train_model(start, examples, schedule, progress=progress)
+        validation, _ = cross_validate(
+            start, examples, assignment, schedule, method=method, progress=progress, fine_tune=tune
+        )
+    model, log = train_model(start, examples, schedule, progress=progress, fine_tune=tune)
     if out is not None:
         record = {"schedule": asdict(schedule), "log": log.as_dict()}
+        if pretraining is not None:
+            record["pretraining"] = asdict(pretraining)
         store.save_trained(
             out, model, label=method, camera=camera, world_seed=world_seed, record=record, overwrite=overwrite
         )
