@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -185,3 +186,25 @@ def test_train_refuses_pretrain_images_without_a_camera(tmp_path):
         cli.main(["train", str(tmp_path), "--method", "FFCC", "--pretrain-images", "64"])
     with pytest.raises(SystemExit, match="--pretrain-images: expected a positive integer"):
         cli.main(["train", str(tmp_path), "--method", "FFCC", "--pretrain-camera", CAMERA, "--pretrain-images", "0"])
+
+
+@pytest.mark.slow
+def test_colour_by_correlation_matrices_pretrain_on_surface_lists(default_world):
+    """The Adam loop's families pretrain on the rendered images' surface lists (their own rule,
+    ave5): the matrices move, every number stays finite, and fine-tuning starts from them."""
+    from ccjax.preprocessing import resolve
+    from ccjax.runs import store
+
+    start = store.fit("RGB-C-by-C-MMSE", default_world)
+    rule = resolve(start)
+    setting = Pretraining(CAMERA, images=48, height=24, width=24, patches=8)
+    schedule = training.Schedule(epochs=1, batch_size=16)
+    pretrained, log = pretrain(start, setting, rule, schedule)
+    examples = render_examples(setting, rule, "surfaces")
+    assert examples.x.ndim == 3 and rule.name == "ave5"
+    before, after = (jax.tree_util.tree_leaves(eqx.partition(m, training.learnable(m))[0]) for m in (start, pretrained))
+    moved = [float(np.max(np.abs(np.asarray(a) - np.asarray(b)))) for a, b in zip(before, after, strict=True)]
+    assert max(moved) > 0 and np.all(np.isfinite(log.train_loss))
+    photos = render_examples(dataclasses.replace(setting, images=16, seed=2), rule, "surfaces")
+    tuned, _ = fine_tune(pretrained, photos, schedule)
+    assert np.all(np.isfinite(training.angular_errors(tuned, photos)))
