@@ -208,3 +208,24 @@ def test_colour_by_correlation_matrices_pretrain_on_surface_lists(default_world)
     photos = render_examples(dataclasses.replace(setting, images=16, seed=2), rule, "surfaces")
     tuned, _ = fine_tune(pretrained, photos, schedule)
     assert np.all(np.isfinite(training.angular_errors(tuned, photos)))
+
+
+def test_curve_summary_averages_each_subsets_pooled_statistics():
+    from ccjax.experiments.pretraining import PretrainingCurve
+
+    errors = {
+        (0.1, 0, "not pretrained"): np.array([1.0, 2.0, 6.0]),
+        (0.1, 1, "not pretrained"): np.array([2.0, 4.0, 3.0]),
+        (0.1, 0, "pretrained"): np.array([1.0, 1.0, 4.0]),
+        (0.1, 1, "pretrained"): np.array([0.5, 1.0, 1.5]),
+    }
+    rows = PretrainingCurve("FFCC", CAMERA, errors).summary()
+    assert [(r["fraction"], r["arm"], r["subsets"]) for r in rows] == [
+        (0.1, "not pretrained", 2),
+        (0.1, "pretrained", 2),
+    ]
+    # Subset means 3 and 3, medians 2 and 3; pretrained: means 2 and 1, medians 1 and 1.
+    assert rows[0]["mean"] == pytest.approx(3.0) and rows[0]["mean_sd"] == pytest.approx(0.0)
+    assert rows[0]["median"] == pytest.approx(2.5) and rows[0]["median_sd"] == pytest.approx(0.5)
+    assert rows[1]["mean"] == pytest.approx(1.5) and rows[1]["mean_sd"] == pytest.approx(0.5)
+    assert rows[1]["median"] == pytest.approx(1.0) and rows[1]["median_sd"] == pytest.approx(0.0)

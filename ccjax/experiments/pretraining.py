@@ -79,15 +79,14 @@ class PretrainingCurve:
         lines = [
             f"{self.method} on photographs, pretrained on images rendered with {self.camera}'s curves: angular "
             "error (degrees), errors pooled over the folds, mean +- sd over the subsets",
-            f"{'fraction':>9}{'subsets':>8}  " + "".join(f"{arm + ' mean':>22}{'median':>16}" for arm in ARMS),
+            f"{'fraction':>9}{'subsets':>8}" + "".join(f"{arm + ' mean':>24}{arm + ' median':>24}" for arm in ARMS),
         ]
         rows = self.summary()
         for index in range(0, len(rows), len(ARMS)):
             pair = rows[index : index + len(ARMS)]
-            cells = "".join(
-                f"{r['mean']:>15.3f} +- {r['mean_sd']:.3f}{r['median']:>9.3f} +- {r['median_sd']:.3f}" for r in pair
-            )
-            lines.append(f"{pair[0]['fraction']:>9.0%}{pair[0]['subsets']:>8}  {cells}")
+            spreads = [f"{r[name]:.3f} +- {r[name + '_sd']:.3f}" for r in pair for name in ("mean", "median")]
+            cells = "".join(f"{cell:>24}" for cell in spreads)
+            lines.append(f"{pair[0]['fraction']:>9.0%}{pair[0]['subsets']:>8}{cells}")
         if self.zero_shot is not None:
             lines.append(
                 f"pretrained only (no photograph): mean {np.mean(self.zero_shot):.3f}, median "
