@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from ccjax.experiments.pretraining import pretraining_curve
-from ccjax.training.pretraining import Pretraining
+from ccjax.training import Pretraining
 
 
 def main() -> None:

@@ -14,11 +14,13 @@ import pytest
 from ccjax import metrics, training
 from ccjax.estimators.ffcc import Hyperparameters, init_ffcc
 from ccjax.estimators.ffcc import train as train_ffcc
-from ccjax.estimators.ffcc.fitting import from_latent, loss, preconditioner, to_latent
+from ccjax.estimators.ffcc._fitting import from_latent, loss, preconditioner, to_latent
 from ccjax.preprocessing import Preprocessing
+from ccjax.runs import store
 from ccjax.scenes import ShotNoise, Specular
 from ccjax.spectra import WAVELENGTHS
-from ccjax.training.pretraining import CODES, Pretraining, fine_tune, pretrain, render_examples, render_images
+from ccjax.training import Pretraining, fine_tune, pretrain, render_examples, render_images
+from ccjax.training._pretraining import CODES
 
 CAMERA = "Canon EOS 600D"
 
@@ -36,7 +38,7 @@ def test_rendered_pixels_are_camera_responses_to_light_times_reflectance(default
     setting = dataclasses.replace(setting, noise=ShotNoise(a=0.0, b=0.0))
     rgb, clipped, lights = (np.asarray(a) for a in render_images(setting))
     rgb, lights = rgb.astype(np.float64), lights.astype(np.float64)
-    world = training.pretraining.store.world("default", CAMERA)
+    world = store.world("default", CAMERA)
     sensors = np.asarray(world.camera.sensors, np.float64)
     spectra = np.asarray(world.test_illuminants, np.float64)
     reflectances = np.asarray(world.reflectances, np.float64)
@@ -153,7 +155,7 @@ def test_pretraining_helps_ffcc_with_few_photographs(default_world):
 def test_evaluate_train_pretrains_then_fine_tunes_in_every_fold(tmp_path, monkeypatch, capsys):
     """``ccjax evaluate --train FFCC --pretrain-camera``: FFCC is pretrained once on rendered
     images, and every fold's fit is a fine-tune of that model (its prior)."""
-    import ccjax.training.procedures as procedures
+    import ccjax.training._procedures as procedures
     from ccjax import cli, io
 
     rgb, _, lights = render_images(Pretraining(CAMERA, images=12, height=24, width=24, patches=8, seed=3))
@@ -193,7 +195,6 @@ def test_colour_by_correlation_matrices_pretrain_on_surface_lists(default_world)
     """The Adam loop's families pretrain on the rendered images' surface lists (their own rule,
     ave5): the matrices move, every number stays finite, and fine-tuning starts from them."""
     from ccjax.preprocessing import resolve
-    from ccjax.runs import store
 
     start = store.fit("RGB-C-by-C-MMSE", default_world)
     rule = resolve(start)

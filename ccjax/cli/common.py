@@ -32,7 +32,7 @@ def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -
 
 def pretrain_arguments(parser: argparse.ArgumentParser) -> None:
     """``--pretrain-camera`` and ``--pretrain-images``: pretraining from spectra
-    (:mod:`ccjax.training.pretraining`)."""
+    (:func:`ccjax.training.pretrain`)."""
     parser.add_argument(
         "--pretrain-camera",
         default=None,
@@ -50,13 +50,13 @@ def pretrain_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def pretraining_setting(args):
-    """The :class:`ccjax.training.pretraining.Pretraining` of ``--pretrain-camera`` and
+    """The :class:`ccjax.training.Pretraining` of ``--pretrain-camera`` and
     ``--pretrain-images``, or None without them; refuses ``--pretrain-images`` alone."""
     if args.pretrain_camera is None:
         if args.pretrain_images is not None:
             raise SystemExit("--pretrain-images: applies with --pretrain-camera only")
         return None
-    from ccjax.training.pretraining import Pretraining
+    from ccjax.training import Pretraining
 
     try:
         images = {} if args.pretrain_images is None else {"images": args.pretrain_images}

@@ -12,7 +12,8 @@
 
 The chapter-specific experiments (``chapter5``, ``indexing``, ``evaluation``) and the evaluation
 of folders of photographs (``folders``; ``folder_sets``: the field's protocol over several
-cameras' folders, ``ccjax evaluate DIR DIR ...``) are submodules imported on their own
+cameras' folders, ``ccjax evaluate DIR DIR ...``; ``pretraining``: the learning curve with and
+without pretraining from spectra) are submodules imported on their own
 (``from ccjax.experiments import chapter5``), not from here, so importing this package stays
 cheap.
 """

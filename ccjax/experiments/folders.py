@@ -237,7 +237,7 @@ def train_in_folds(
         preprocessing, dark: the inputs' preparation.
         progress: progress bars.
         log: called with a line before each label's training.
-        pretraining: a :class:`ccjax.training.pretraining.Pretraining`: each start is first
+        pretraining: a :class:`ccjax.training.Pretraining`: each start is first
             pretrained on images rendered from spectra and then fine-tuned within the folds
             (None: trained from its fit to the world).
 
@@ -248,7 +248,6 @@ def train_in_folds(
         ValueError: a fold whose training set (the other folds) has too few usable images.
     """
     from ccjax import training
-    from ccjax.training.pretraining import pretrain
 
     assignment = dict(zip(names, np.asarray(fold_of).tolist(), strict=True))
     models, validations = {}, {}
@@ -274,7 +273,7 @@ def train_in_folds(
         schedule = (schedules or {}).get(label) or training.default_schedule(start)
         origin = "its fit to the world"
         if pretraining is not None:
-            start, _ = pretrain(start, pretraining, resolve(start, preprocessing), schedule, progress=progress)
+            start, _ = training.pretrain(start, pretraining, resolve(start, preprocessing), schedule, progress=progress)
             origin = f"pretrained on {pretraining.images} images rendered with {pretraining.camera}'s curves"
         if log is not None:
             log(f"training {label} within {folds} folds on {len(examples)} images (start: {origin})")

@@ -1,6 +1,6 @@
 """The pretraining curve: a learned estimator trained on a share of each training fold of a photo
 set, from scratch and fine-tuned from its pretraining on rendered images
-(:mod:`ccjax.training.pretraining`), scored on the held-out fold.
+(:func:`ccjax.training.pretrain`), scored on the held-out fold.
 
 For every fold, fraction and subset, the training images are a seeded random subset of the other
 folds' images (never the scored fold's); both arms train on the same subset. Each subset's errors
@@ -20,8 +20,15 @@ from ccjax.io.ground_truth import match_ground_truth, read_ground_truth_file
 from ccjax.preprocessing import resolve
 from ccjax.runs import store
 from ccjax.runs.sources import image_folder
-from ccjax.training import angular_errors, assign_folds, source_examples, train_model
-from ccjax.training.pretraining import Pretraining, fine_tune, pretrain
+from ccjax.training import (
+    Pretraining,
+    angular_errors,
+    assign_folds,
+    fine_tune,
+    pretrain,
+    source_examples,
+    train_model,
+)
 
 __all__ = ["ARMS", "PretrainingCurve", "pretraining_curve"]
 

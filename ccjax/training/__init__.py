@@ -1,7 +1,8 @@
 """Training estimators on image sets (optax): the learnable parameters of each differentiable
 family (:mod:`._parameters`), training examples read from a folder (:mod:`._data`), the Adam loop
 with relighting augmentation, held-out error and early stopping (:mod:`._loop`), K-fold
-cross-validation (:mod:`._folds`); model files: :func:`ccjax.runs.store.save_trained` and
+cross-validation (:mod:`._folds`), pretraining on images rendered from a camera's spectra
+(:mod:`._pretraining`); model files: :func:`ccjax.runs.store.save_trained` and
 :func:`ccjax.load_model`.
 
 Typical use::
@@ -22,6 +23,15 @@ from ccjax.training._folds import (
 )
 from ccjax.training._loop import Schedule, TrainingLog, angular_errors, fit_to_examples, predict, subsample
 from ccjax.training._parameters import constrain, learnable, learnable_types
+from ccjax.training._pretraining import (
+    Pretraining,
+    fine_tune,
+    planckian_lights,
+    planckian_locus,
+    pretrain,
+    render_examples,
+    render_images,
+)
 from ccjax.training._procedures import LOG_CHROMA_SCHEDULE, default_schedule, train_model
 
 __all__ = [
@@ -29,6 +39,7 @@ __all__ = [
     "CrossValidation",
     "Examples",
     "FoldResult",
+    "Pretraining",
     "Schedule",
     "TrainingLog",
     "angular_errors",
@@ -36,13 +47,19 @@ __all__ = [
     "constrain",
     "cross_validate",
     "default_schedule",
+    "fine_tune",
     "fit_to_examples",
     "learnable",
     "learnable_types",
     "load_examples",
+    "planckian_lights",
+    "planckian_locus",
     "predict",
+    "pretrain",
     "read_examples",
     "read_folds",
+    "render_examples",
+    "render_images",
     "source_examples",
     "subsample",
     "train_model",

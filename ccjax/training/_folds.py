@@ -15,7 +15,7 @@ from ccjax.io.reading import MAX_PIXELS
 from ccjax.preprocessing import resolve
 from ccjax.training._data import Examples, read_examples
 from ccjax.training._loop import Schedule, TrainingLog, angular_errors
-from ccjax.training.pretraining import Pretraining, pretrain
+from ccjax.training._pretraining import Pretraining, pretrain
 from ccjax.training._procedures import default_schedule, train_model
 
 
@@ -218,7 +218,7 @@ def train_on_images(
         max_pixels: the pixel budget of the image headers (default 100 MP; None: no limit).
         overwrite: replace an existing ``out`` (and its record).
         pretraining: pretrain the start on images rendered from spectra, then fine-tune it on the
-            photographs (:mod:`ccjax.training.pretraining`; None: no pretraining).
+            photographs (:func:`ccjax.training.pretrain`; None: no pretraining).
 
     Returns:
         ``(trained model, its TrainingLog, CrossValidation or None)``.

@@ -82,7 +82,7 @@ def train_model(
             :func:`default_schedule`; families with their own solver ignore it).
         validation: held-out examples for the Adam loop's early stopping.
         progress: progress bars.
-        fine_tune: ``model`` was pretrained (:mod:`ccjax.training.pretraining`) and the fit refines
+        fine_tune: ``model`` was pretrained (:func:`ccjax.training.pretrain`) and the fit refines
             it: FFCC's regulariser is centred on it; the Adam loop starts from ``model`` either way.
 
     Returns:

@@ -308,7 +308,7 @@ def train(
     """Train FFCC on images with ground truth (module docstring).
 
     With ``prior`` (a model trained elsewhere, e.g. on rendered images,
-    :mod:`ccjax.training.pretraining`) the fit keeps the prior's bin size, starts from the
+    :func:`ccjax.training.pretrain`) the fit keeps the prior's bin size, starts from the
     prior's filters and bias map and centres the regulariser on them: ``0.5 ||z - z_prior||^2``
     in the preconditioned variables, a Gaussian prior whose mean is the prior model and whose
     covariance is FFCC's regulariser (the "L2-SP" transfer of Li, Grandvalet & Davoine, ICML

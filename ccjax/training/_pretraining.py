@@ -38,9 +38,9 @@ from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, prepare_input
 from ccjax.runs import store
 from ccjax.scenes import SceneTables, ShotNoise, Specular, mondrian_batch, scene_keys
 from ccjax.spectra import WAVELENGTHS
-from ccjax.training.data import Examples, stack_inputs
-from ccjax.training.loop import Schedule, TrainingLog
-from ccjax.training.procedures import train_model
+from ccjax.training._data import Examples, stack_inputs
+from ccjax.training._loop import Schedule, TrainingLog
+from ccjax.training._procedures import train_model
 from ccjax.world import World
 
 __all__ = [
