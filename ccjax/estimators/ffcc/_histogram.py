@@ -10,6 +10,8 @@ periodic ones the FFT computes.
 
 from __future__ import annotations
 
+import math
+
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
@@ -21,10 +23,15 @@ MINIMUM_INTENSITY = 1.0 / 256.0
 """Channels below this, in units of the sensor's saturation level (1.0 on ccjax's linear scale), are
 not trusted (the reference code's ``HISTOGRAM.MINIMUM_INTENSITY``)."""
 
+_HALF_NEIGHBOURHOOD = ((0, 1), (1, 0), (1, 1), (1, -1))
+"""One of each pair of opposite 3x3 neighbour offsets: ``|a - b| = |b - a|``, so each difference
+is computed once and credited to both pixels of the pair."""
+
 
 def local_absolute_deviation(image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "H W 3"]:
     """Mean absolute difference between each usable pixel and its usable 3x3 neighbours, per
-    channel (FFCC §4's edge channel; borders replicate the edge pixels).
+    channel (FFCC §4's edge channel; borders replicate the edge pixels, as the reference code's
+    ``MaskedLocalAbsoluteDeviation``).
 
     Arguments:
         image: ``(H, W, 3)`` linear RGB.
@@ -34,45 +41,55 @@ def local_absolute_deviation(image: Float[Array, "H W 3"], mask: Bool[Array, "H 
         ``(H, W, 3)`` the deviation; 0 where a pixel is unusable or has no usable neighbour.
     """
     height, width = mask.shape
-    padded = jnp.pad(image, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    padded_mask = jnp.pad(mask, 1, mode="edge")
-    numerator = jnp.zeros_like(image)
+    # Channels first: the rows, not the 3 channels, are the innermost axis the CPU vectorises.
+    padded = jnp.pad(jnp.moveaxis(image, -1, 0), ((0, 0), (1, 1), (1, 1)), mode="edge")
+    padded_mask = jnp.pad(mask, 1, mode="edge").astype(image.dtype)
+    numerator = jnp.zeros((3, height, width), image.dtype)
     count = jnp.zeros(mask.shape, image.dtype)
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            if di == 0 and dj == 0:
-                continue
-            shifted = padded[1 + di : 1 + di + height, 1 + dj : 1 + dj + width]
-            both = (mask & padded_mask[1 + di : 1 + di + height, 1 + dj : 1 + dj + width]).astype(image.dtype)
-            numerator = numerator + both[..., None] * jnp.abs(shifted - image)
-            count = count + both
-    return numerator / jnp.maximum(count, 1.0)[..., None]
+    for di, dj in _HALF_NEIGHBOURHOOD:
+        # Pairs (q, q + d) of the padded grid, indexed by q from row 0 and column max(0, -dj).
+        rows, cols = slice(0, height + 2 - di), slice(max(0, -dj), width + 2 - max(0, dj))
+        shifted_rows, shifted_cols = slice(di, height + 2), slice(max(0, -dj) + dj, width + 2 - max(0, dj) + dj)
+        both = padded_mask[rows, cols] * padded_mask[shifted_rows, shifted_cols]
+        difference = both * jnp.abs(padded[:, shifted_rows, shifted_cols] - padded[:, rows, cols])
+        # A pixel p (padded (1 + y, 1 + x)) is the first of the pair at q = p and the second at q = p - d.
+        for oi, oj in ((0, 0), (-di, -dj)):
+            top, left = 1 + oi, 1 + oj - max(0, -dj)
+            numerator = numerator + difference[:, top : top + height, left : left + width]
+            count = count + both[top : top + height, left : left + width]
+    return jnp.moveaxis(numerator / jnp.maximum(count, 1.0), 0, -1)
 
 
 def wrapped_histogram(
-    rgb: Float[Array, "P 3"],
-    valid: Bool[Array, " P"],
+    rgb: Float[Array, "*C P 3"],
+    valid: Bool[Array, "*C P"],
     origin: Float[Array, "2"],
     bins: int,
     bin_size: Float[Array, ""] | float,
-) -> Float[Array, "bins bins"]:
-    """Normalised histogram of the valid colours' log-chroma on the ``bins x bins`` torus.
+) -> Float[Array, "*C bins bins"]:
+    """Normalised histogram of the valid colours' log-chroma on the ``bins x bins`` torus, one per
+    leading index (one scatter for all of them).
 
     Arguments:
-        rgb: ``(P, 3)`` colours (a channel at or below 0 must be marked invalid).
-        valid: ``(P,)`` the colours counted.
+        rgb: ``(..., P, 3)`` colours (a channel at or below 0 must be marked invalid).
+        valid: ``(..., P)`` the colours counted.
         origin: ``(2,)`` log-chroma ``(u, v)`` of bin ``(0, 0)``'s centre.
         bins: bins per axis.
         bin_size: log-chroma width of a bin.
 
     Returns:
-        ``(bins, bins)`` counts divided by their sum (all zeros when nothing is valid); axis 0 is
-        ``u``, axis 1 ``v``.
+        ``(..., bins, bins)`` counts divided by their sum (all zeros when nothing is valid); axis
+        -2 is ``u``, axis -1 ``v``.
     """
-    cells = jnp.floor((log_chroma(rgb) - origin) / bin_size + 0.5).astype(jnp.int32) % bins
-    weight = valid.astype(rgb.dtype)
-    counts = jnp.zeros(bins * bins, rgb.dtype).at[cells[:, 0] * bins + cells[:, 1]].add(weight)
-    return (counts / jnp.maximum(jnp.sum(weight), 1.0)).reshape(bins, bins)
+    leading, points = valid.shape[:-1], valid.shape[-1]
+    cells = jnp.floor((log_chroma(rgb.reshape(-1, 3)) - origin) / bin_size + 0.5).astype(jnp.int32) % bins
+    histograms = math.prod(leading)
+    offset = jnp.repeat(jnp.arange(histograms, dtype=jnp.int32) * bins * bins, points)
+    # Invalid colours go to an index past the end, which the scatter drops.
+    index = jnp.where(valid.reshape(-1), offset + cells[:, 0] * bins + cells[:, 1], histograms * bins * bins)
+    counts = jnp.zeros(histograms * bins * bins, rgb.dtype).at[index].add(1.0, mode="drop")
+    counts = counts.reshape(*leading, bins, bins)
+    return counts / jnp.maximum(jnp.sum(counts, axis=(-2, -1), keepdims=True), 1.0)
 
 
 def featurize(
@@ -97,10 +114,6 @@ def featurize(
     Returns:
         ``(2, bins, bins)`` the pixel histogram and the edge histogram.
     """
-    edges = local_absolute_deviation(image, mask)
-    channels = []
-    for values in (image, edges):
-        rgb = values.reshape(-1, 3)
-        valid = mask.reshape(-1) & jnp.all(rgb >= minimum, axis=-1) & jnp.all(rgb > 0, axis=-1)
-        channels.append(wrapped_histogram(rgb, valid, origin, bins, bin_size))
-    return jnp.stack(channels)
+    rgb = jnp.stack([image, local_absolute_deviation(image, mask)]).reshape(2, -1, 3)
+    valid = mask.reshape(1, -1) & jnp.all(rgb >= minimum, axis=-1) & jnp.all(rgb > 0, axis=-1)
+    return wrapped_histogram(rgb, valid, origin, bins, bin_size)

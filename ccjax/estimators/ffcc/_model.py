@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
+from ccjax.backends import block_scenes
 from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractImageEstimator, Estimate, Padding
 from ccjax.estimators.ffcc._histogram import MINIMUM_INTENSITY, featurize
 from ccjax.estimators.ffcc._vonmises import fit_von_mises
@@ -110,8 +111,10 @@ class FFCC(AbstractImageEstimator):
     padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
     def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
-        return None
+        """The backend's block (:func:`ccjax.backends.block_scenes`): one ``vmap`` over the whole
+        batch streams each image's edge channel and histograms through memory (measured 1.8x
+        slower than blocks of 128 on a CPU)."""
+        return block_scenes(backend)
 
     @property
     def bins(self) -> int:
