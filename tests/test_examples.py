@@ -110,6 +110,20 @@ def test_synthetic_raw_evaluation_quick():
     assert len(rows) == 2 and all(0 < row[0] < 30 for row in rows)
 
 
+def test_ffcc_quick():
+    out = run_example("ffcc_quick.py", "--quick")
+    assert "wrote 120 images of 32x32" in out
+    summary = re.findall(r"^(GW|shades-of-grey-p6|FFCC trained) +(\d+\.\d+) +(\d+\.\d+)$", out, re.MULTILINE)
+    means = {method: float(mean) for method, mean, _ in summary}
+    assert len(summary) == 3 and len(means) == 3, out
+    # Trained within folds on scenes whose lights it has seen, FFCC beats the untrained statistics.
+    assert 0 < means["FFCC trained"] < means["shades-of-grey-p6"] < 30, out
+    uncertainty = table_rows(out, r"image-\d{4}\.png")
+    assert len(uncertainty) == 5, out
+    # error (deg), two standard deviations (log-chroma) and a confidence in (0, 1]
+    assert all(row[0] >= 0 and row[1] > 0 and row[2] > 0 and 0 < row[3] <= 1 for row in uncertainty), out
+
+
 def test_calibrate_synthetic_quick():
     out = run_example("calibrate_synthetic.py", "--quick")
     assert "RMS relative error" in out and "pseudo-inverse" in out
