@@ -15,11 +15,13 @@ from jax.test_util import check_grads
 
 from ccjax import metrics, training
 from ccjax.estimators import registry
+from ccjax.estimators.base import estimate_batch
 from ccjax.estimators.ffcc import (
     FFCC,
     convolve,
     featurize,
     fit_von_mises,
+    init_ffcc,
     local_absolute_deviation,
     wrapped_histogram,
 )
@@ -49,6 +51,34 @@ def test_wrapped_histogram_matches_oracle():
     got = np.asarray(wrapped_histogram(jnp.asarray(rgb), jnp.asarray(valid), jnp.asarray(origin), 16, 0.125))
     np.testing.assert_allclose(got, oracle.histogram(rgb, valid, origin, 16, 0.125), atol=1e-6)
     assert got.sum() == pytest.approx(1.0, abs=1e-5)
+
+
+def test_wrapped_histograms_of_a_stack_match_oracle_one_by_one():
+    rng = np.random.default_rng(11)
+    rgb = np.exp(rng.uniform(-2.0, 2.0, (2, 3, 50, 3))).astype(np.float32)
+    valid = rng.uniform(size=(2, 3, 50)) > 0.3
+    valid[1, 2] = False  # a stack entry with nothing valid stays all zeros
+    origin = np.array([0.2, -0.4], np.float32)
+    got = np.asarray(wrapped_histogram(jnp.asarray(rgb), jnp.asarray(valid), jnp.asarray(origin), 8, 0.25))
+    assert got.shape == (2, 3, 8, 8)
+    for i in range(2):
+        for j in range(3):
+            np.testing.assert_allclose(got[i, j], oracle.histogram(rgb[i, j], valid[i, j], origin, 8, 0.25), atol=1e-6)
+
+
+def test_blocked_batch_estimates_equal_one_image_at_a_time():
+    """estimate_batch's blocks (the CPU block is 128 images) give each image's own answer."""
+    rng = np.random.default_rng(12)
+    model = eqx.tree_at(
+        lambda m: (m.filters, m.bias),
+        init_ffcc(),
+        (jnp.asarray(rng.normal(size=(2, 64, 64)), jnp.float32), jnp.asarray(rng.normal(size=(64, 64)), jnp.float32)),
+    )
+    images = jnp.asarray(rng.uniform(0.01, 1.0, (130, 6, 5, 3)), jnp.float32)
+    masks = jnp.asarray(rng.uniform(size=(130, 6, 5)) > 0.2)
+    batched = estimate_batch(model, images, masks).illuminant
+    for i in (0, 77, 129):
+        np.testing.assert_allclose(np.asarray(batched[i]), np.asarray(model(images[i], masks[i]).illuminant), rtol=1e-5)
 
 
 def test_featurize_counts_pixels_and_edges_above_the_minimum():
