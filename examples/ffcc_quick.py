@@ -17,8 +17,8 @@ On photographs the same commands apply to your own folder (see docs/photographs.
 your photographs").
 
 Run: ``python examples/ffcc_quick.py [--images 600] [--size 64] [--out DIR]``; ``--quick`` makes
-120 images of 32 x 32 (under a minute; the folds' training sets and the whole set share one
-compiled solver, :data:`ccjax.estimators.ffcc.fitting.PAD`).
+120 images of 32 x 32 (under a minute; FFCC pads a training set to a multiple of 128 images, so
+the folds' training sets and the whole set share one compiled solver).
 """
 
 from __future__ import annotations
