@@ -18,6 +18,8 @@ from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch
 from ccjax.estimators.ffcc import (
     FFCC,
+    Hyperparameters,
+    choose,
     convolve,
     featurize,
     fit_von_mises,
@@ -198,6 +200,20 @@ def test_training_on_synthetic_scenes_beats_grey_world(tmp_path, default_world):
     loaded = store.load_model(path)
     again = jax.vmap(loaded)(test_images, test_masks)
     np.testing.assert_allclose(np.asarray(again.illuminant), np.asarray(estimate.illuminant), rtol=1e-6)
+
+
+def test_choose_keeps_the_candidate_that_validates_better_in_either_order():
+    """An untrained candidate (no L-BFGS iteration: a uniform distribution) loses to a trained one
+    within the training images, whichever comes first; too few images give the first, unscored."""
+    images, masks, lights = _synthetic_scenes(10, 40)
+    untrained = Hyperparameters(pretrain_iterations=0, iterations=0)
+    trained = Hyperparameters()
+    for candidates in ((untrained, trained), (trained, untrained)):
+        chosen, scores = choose(init_ffcc(), images, masks, lights, candidates)
+        assert chosen is trained and len(scores) == 2 and all(np.isfinite(scores))
+        assert scores[candidates.index(trained)] < 0.7 * scores[candidates.index(untrained)]
+    chosen, scores = choose(init_ffcc(), images[:7], masks[:7], lights[:7], (untrained, trained))
+    assert chosen is untrained and scores == []
 
 
 def test_registry_builds_an_untrained_image_estimator_and_no_data_is_flagged(default_world):

@@ -9,7 +9,7 @@ import dataclasses
 import time
 
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.estimators.ffcc import FFCC
+from ccjax.estimators.ffcc import FFCC, Hyperparameters, choose
 from ccjax.estimators.ffcc import train as train_ffcc
 from ccjax.estimators.neural import LogChromaNet
 from ccjax.training._data import Examples
@@ -29,16 +29,21 @@ training images only (``validation_fraction``), so nothing is chosen on a scored
 def _fit_ffcc(
     model: FFCC, examples: Examples, schedule: Schedule, validation: Examples | None, progress: bool, fine_tune: bool
 ) -> tuple[AbstractEstimator, TrainingLog]:
-    """FFCC's L-BFGS fit on every training example (its regularisers, not early stopping, keep it
-    from overfitting, so nothing is held out; the schedule's epochs and steps do not apply); a
-    fine-tune centres the regulariser on ``model`` (:func:`ccjax.estimators.ffcc.train`'s prior)."""
-    cpu_start = time.process_time()
+    """FFCC's L-BFGS fit on every training example, with the hyperparameters chosen by two-fold
+    validation within them (:func:`ccjax.estimators.ffcc.choose`, seeded by the schedule's seed);
+    its regularisers, not early stopping, keep it from overfitting, so nothing else is held out
+    and the schedule's epochs and steps do not apply. A fine-tune centres the regulariser on
+    ``model`` (:func:`ccjax.estimators.ffcc.train`'s prior) with the default hyperparameters: it is
+    meant for training sets too small to split for a choice."""
+    start, cpu_start = time.perf_counter(), time.process_time()
     if examples.x.ndim != 4:
         raise ValueError(f"examples: FFCC trains on images (N, H, W, 3), got shape {tuple(examples.x.shape)}")
-    prior = model if fine_tune else None
-    trained, record = train_ffcc(model, examples.x, examples.mask, examples.illuminant, prior=prior)
+    prior, settings = (model, Hyperparameters()) if fine_tune else (None, None)
+    if settings is None:
+        settings, _ = choose(model, examples.x, examples.mask, examples.illuminant, seed=schedule.seed)
+    trained, record = train_ffcc(model, examples.x, examples.mask, examples.illuminant, settings, prior=prior)
     log = TrainingLog(train_loss=record.losses, n_train=len(examples), n_heldout=0)
-    log.seconds, log.cpu_seconds = record.seconds, time.process_time() - cpu_start
+    log.seconds, log.cpu_seconds = time.perf_counter() - start, time.process_time() - cpu_start
     return trained, log
 
 

@@ -13,18 +13,21 @@ regularisers; ``ccjax train --method FFCC`` and ``ccjax evaluate --train FFCC`` 
 from ccjax.estimators.ffcc._fitting import Hyperparameters, TrainingRecord, train
 from ccjax.estimators.ffcc._histogram import MINIMUM_INTENSITY, featurize, local_absolute_deviation, wrapped_histogram
 from ccjax.estimators.ffcc._model import BIN_SIZE, BINS, FFCC, ORIGIN, Posterior, convolve, uv_to_rgb
+from ccjax.estimators.ffcc._selection import CANDIDATES, choose
 from ccjax.estimators.ffcc._vonmises import fit_von_mises, gaussian_nll
 from ccjax.estimators.registry import register
 
 __all__ = [
     "BINS",
     "BIN_SIZE",
+    "CANDIDATES",
     "FFCC",
     "MINIMUM_INTENSITY",
     "ORIGIN",
     "Hyperparameters",
     "Posterior",
     "TrainingRecord",
+    "choose",
     "convolve",
     "featurize",
     "fit_von_mises",

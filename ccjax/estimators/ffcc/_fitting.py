@@ -8,9 +8,11 @@ costs ``(tv * TV(k) + l2) |fft2(F)(k)|^2``. The model is optimised in the variab
 "preconditioning"; the reference code's ``Fft2RegularizerToPreconditioner``), so L-BFGS sees a
 well-conditioned problem. Two passes as in the reference code: 16 iterations of the convex
 cross-entropy loss, then 64 of the von Mises negative log-likelihood of the true light (FFCC §4).
-Hyperparameters: the reference code's, tuned by its authors for the Canon 600D thumbnails of the
-NUS-8 set (``ChengCanon600DThumbHyperparams``), fixed for every camera here; the histogram's
-origin and bin size are fitted to the training lights (:func:`fit_origin`, :func:`fit_grid`).
+Hyperparameters: by default the reference code's, tuned by its authors for the Canon 600D
+thumbnails of the NUS-8 set (``ChengCanon600DThumbHyperparams``); the training layer chooses
+between them and another reference setting inside the training images
+(:func:`ccjax.estimators.ffcc.choose`). The histogram's origin and bin size are fitted to the
+training lights (:func:`fit_origin`, :func:`fit_grid`).
 """
 
 from __future__ import annotations
