@@ -147,12 +147,20 @@ def run_train(args) -> int:
     del model
     if folds is not None:
         print(folds.table())
-    print(
-        f"{args.method}: held-out median angular error {log.initial_median:.3f} -> "
-        f"{min([log.initial_median, *log.heldout_median]):.3f} deg (best epoch {log.best_epoch} of "
-        f"{len(log.heldout_median)}{', stopped early' if log.stopped_early else ''}; {log.n_train} training, "
-        f"{log.n_heldout} held-out images) in {log.seconds:.1f} s"
-    )
+    if log.n_heldout == 0:  # FFCC: regularised L-BFGS, no stopping split to report on
+        print(
+            f"{args.method}: trained on {log.n_train} images ({len(log.train_loss)} L-BFGS passes, "
+            f"final loss {log.train_loss[-1]:.4g}) in {log.seconds:.1f} s"
+            if log.train_loss
+            else f"{args.method}: trained on {log.n_train} images in {log.seconds:.1f} s"
+        )
+    else:
+        print(
+            f"{args.method}: held-out median angular error {log.initial_median:.3f} -> "
+            f"{min([log.initial_median, *log.heldout_median]):.3f} deg (best epoch {log.best_epoch} of "
+            f"{len(log.heldout_median)}{', stopped early' if log.stopped_early else ''}; {log.n_train} training, "
+            f"{log.n_heldout} held-out images) in {log.seconds:.1f} s"
+        )
     if args.out:
         print(f"saved {args.out}")
     return 0

@@ -62,13 +62,20 @@ def training_table(validations: dict) -> str:
     for label, validation in validations.items():
         for result in validation.folds:
             row, log = result.summary(), result.log
+            # A fit without a stopping split (FFCC's regularised L-BFGS) has no epochs to report.
+            stopping = (
+                f"{row['epochs']:>8}{row['best_epoch']:>6}",
+                f"{log.initial_median:>26.3f}{min([log.initial_median, *log.heldout_median]):>7.3f}",
+            )
+            if log.n_heldout == 0:
+                stopping = (f"{'-':>8}{'-':>6}", f"{'-':>26}{'-':>7}")
             lines.append(
-                f"{label:<24}{row['fold']:>5}{row['n_train']:>12}{row['n_test']:>8}{row['epochs']:>8}"
-                f"{row['best_epoch']:>6}{row['train_seconds']:>9.1f}{row['train_cpu_seconds']:>9.1f}"
-                f"{log.initial_median:>26.3f}{min([log.initial_median, *log.heldout_median]):>7.3f}"
+                f"{label:<24}{row['fold']:>5}{row['n_train']:>12}{row['n_test']:>8}{stopping[0]}"
+                f"{row['train_seconds']:>9.1f}{row['train_cpu_seconds']:>9.1f}{stopping[1]}"
             )
     lines.append(
         "(trained on: the other folds' images, an early-stopping split of them included; stop-split median: "
-        "angular error on that split before training and at the best epoch)"
+        "angular error on that split before training and at the best epoch; '-': the method trains without "
+        "a stopping split)"
     )
     return "\n".join(lines)
