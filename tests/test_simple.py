@@ -48,9 +48,13 @@ def test_match_reference(models, run, default_world):
         np.testing.assert_allclose(got["AVE-ILLUM"], np.asarray(default_world.train_whites).mean(axis=0), rtol=1e-5)
 
 
+# A component is exactly 0 (a channel without light) or at least 2^-100 (~8e-31): XLA on CPU flushes
+# subnormal float32 to zero, so a channel lit only near float32's floor (~1e-38) could go dark at
+# one scale and not another. The properties are the estimators'; that floor is the number format's.
+component = st.one_of(st.just(0.0), st.floats(2.0**-100, 1.0, width=32))
 scene = st.integers(1, P).flatmap(
     lambda n: st.tuples(
-        st.lists(st.tuples(*[st.floats(0.0, 1.0, width=32)] * 3), min_size=n, max_size=n),
+        st.lists(st.tuples(*[component] * 3), min_size=n, max_size=n),
         st.randoms(use_true_random=False),
     )
 )
