@@ -163,9 +163,9 @@ def test_evaluate_train_pretrains_then_fine_tunes_in_every_fold(tmp_path, monkey
     priors = []
     original = procedures.train_ffcc
 
-    def spy(model, images, masks, illuminants, prior=None):
+    def spy(*args, prior=None, **kwargs):
         priors.append(prior)
-        return original(model, images, masks, illuminants, prior=prior)
+        return original(*args, prior=prior, **kwargs)
 
     monkeypatch.setattr(procedures, "train_ffcc", spy)
     argv = ["evaluate", str(tmp_path / "set"), "--ground-truth", str(truth), "--methods", "GW", "--folds", "2"]
