@@ -112,6 +112,7 @@ def assert_close(actual: np.ndarray, expected: np.ndarray, name: str, tolerance:
     assert difference <= tolerance, f"{name}: {difference:.2e} relative"
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_two_processes_and_four_devices_agree_with_one(tmp_path):
     """One test, so that the four workers start once also when pytest-xdist spreads tests."""
     runs = launch(tmp_path)

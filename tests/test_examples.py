@@ -110,6 +110,7 @@ def test_synthetic_raw_evaluation_quick():
     assert len(rows) == 2 and all(0 < row[0] < 30 for row in rows)
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_ffcc_quick():
     out = run_example("ffcc_quick.py", "--quick")
     assert "wrote 120 images of 32x32" in out

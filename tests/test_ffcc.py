@@ -178,6 +178,7 @@ def _synthetic_scenes(seed: int, count: int, size: int = 12):
     return images, np.ones(images.shape[:3], bool), lights.astype(np.float32)
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_training_on_synthetic_scenes_beats_grey_world(tmp_path, default_world):
     """Trained through the training layer's dispatch (L-BFGS, not the Adam loop), saved and read
     back as a model file."""
@@ -202,6 +203,7 @@ def test_training_on_synthetic_scenes_beats_grey_world(tmp_path, default_world):
     np.testing.assert_allclose(np.asarray(again.illuminant), np.asarray(estimate.illuminant), rtol=1e-6)
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_choose_keeps_the_candidate_that_validates_better_in_either_order():
     """An untrained candidate (no L-BFGS iteration: a uniform distribution) loses to a trained one
     within the training images, whichever comes first; too few images give the first, unscored."""

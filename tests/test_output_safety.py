@@ -490,6 +490,7 @@ def _run_kill_trials(tmp_path: Path, trials: int, seed: int = 0) -> dict[str, in
         server.close()
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_kill_while_correct_writes_leaves_no_partial_file(tmp_path):
     counts = _run_kill_trials(tmp_path, QUICK_KILL_TRIALS)
     print(counts)

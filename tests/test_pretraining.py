@@ -131,6 +131,7 @@ def test_fine_tune_without_iterations_is_the_prior_on_the_recentred_grid():
         train_ffcc(init_ffcc(bins=8), images, masks, lights, none, prior=prior)
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_pretraining_helps_ffcc_with_few_photographs(default_world):
     """Rendered "photographs" (another seed of the renderer): FFCC fine-tuned from its pretraining
     on 8 of them beats FFCC trained from scratch on the same 8, on 96 held out."""
