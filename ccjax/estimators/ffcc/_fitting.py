@@ -10,7 +10,7 @@ well-conditioned problem. Two passes as in the reference code: 16 iterations of 
 cross-entropy loss, then 64 of the von Mises negative log-likelihood of the true light (FFCC §4).
 Hyperparameters: by default the reference code's, tuned by its authors for the Canon 600D
 thumbnails of the NUS-8 set (``ChengCanon600DThumbHyperparams``); the training layer chooses
-between them and another reference setting inside the training images
+among the reference's settings for seven NUS-8 cameras inside the training images
 (:func:`ccjax.estimators.ffcc.choose`). The histogram's origin and bin size are fitted to the
 training lights (:func:`fit_origin`, :func:`fit_grid`).
 """
