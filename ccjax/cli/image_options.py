@@ -42,6 +42,13 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
         help="folder of mask images, one per image named by its stem (DIR/<stem>.png, .tif or .tiff); "
         "nonzero = usable pixel, zero = excluded (e.g. the colour checker)",
     )
+    file_arguments(parser)
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def file_arguments(parser: argparse.ArgumentParser) -> None:
+    """How image files are read (black level, saturation, 8-bit and sRGB files, the pixel budget):
+    the options of :func:`read_options`, shared by every command that reads photographs."""
     parser.add_argument(
         "--black-level",
         type=float,
@@ -67,7 +74,6 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
         help="the images (not raw files) are sRGB-encoded, as JPEG and most 8-bit files are: undo the sRGB curve "
         "(colour-science) before estimating; 8-bit files and JPEG are accepted",
     )
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
 def positive_int(text: str) -> int:

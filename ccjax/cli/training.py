@@ -16,7 +16,7 @@ from ccjax.cli.common import (
     start_processes,
     world_arguments,
 )
-from ccjax.cli.image_options import max_pixels_argument
+from ccjax.cli.image_options import file_arguments, read_options
 
 NETS = ("NEURAL-NET", "SP-NEURAL-NET")
 
@@ -46,7 +46,7 @@ def add_train(sub) -> None:
     p.add_argument("--specular", action="store_true", help="nets only: same as --method SP-NEURAL-NET")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pretrain_arguments(p)
-    max_pixels_argument(p)
+    file_arguments(p)
     overwrite_argument(p, "--out model file and its .json record")
     world_arguments(p)
     p.set_defaults(func=run_train)
@@ -140,7 +140,7 @@ def run_train(args) -> int:
         schedule=schedule,
         out=args.out,
         progress=not args.no_progress,
-        max_pixels=args.max_pixels,
+        read_options=read_options(args),
         overwrite=args.overwrite,
         pretraining=pretraining,
     )

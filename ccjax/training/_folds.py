@@ -195,6 +195,7 @@ def train_on_images(
     max_pixels: int | None = MAX_PIXELS,
     overwrite: bool = True,
     pretraining: Pretraining | None = None,
+    read_options: dict | None = None,
 ) -> tuple[AbstractEstimator, TrainingLog, CrossValidation | None]:
     """Train the estimator ``method`` on a folder of images with ground truth.
 
@@ -219,6 +220,9 @@ def train_on_images(
         overwrite: replace an existing ``out`` (and its record).
         pretraining: pretrain the start on images rendered from spectra, then fine-tune it on the
             photographs (:func:`ccjax.training.pretrain`; None: no pretraining).
+        read_options: how the files are read, keyword arguments of :func:`ccjax.io.read_image`
+            (e.g. ``{"black_level": 2048, "saturation": 15000}``, as ``ccjax evaluate`` reads them;
+            its ``max_pixels`` replaces the argument above).
 
     Returns:
         ``(trained model, its TrainingLog, CrossValidation or None)``.
@@ -237,7 +241,7 @@ def train_on_images(
         list(table.lights),
         start,
         progress=progress,
-        read_options={"max_pixels": max_pixels},
+        read_options={"max_pixels": max_pixels, **(read_options or {})},
     )
     if failures:
         raise ValueError(f"{len(failures)} images cannot be used for training:\n  " + "\n  ".join(failures.values()))
