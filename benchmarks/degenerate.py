@@ -1,4 +1,4 @@
-"""Print the degenerate-input sweep (issue 17): every buildable label on zero, masked, single,
+"""Print the degenerate-input sweep: every buildable label on zero, masked, single,
 identical, scaled and one-channel scenes; exits 1 when any cell breaks the contract.
 
 Usage: ``python benchmarks/degenerate.py [LABEL ...]`` (default: every label, see

@@ -1,4 +1,4 @@
-"""How right is ``ccjax evaluate``'s progress-bar ETA (issue 12 acceptance 4)?
+"""How right is ``ccjax evaluate``'s progress-bar ETA?
 
 Writes 500 synthetic 48x64 16-bit Mondrians of the Canon EOS 5D Mark II (shot noise, highlights on
 half the patches) with their ground truth, runs ``ccjax evaluate`` on them with its progress bar,

@@ -1,5 +1,5 @@
 """How strong are the synthetic fluorescent surfaces? Table 7.2's baselines and FL's cost against
-two knobs of the stand-ins (issue 13, Table 7.2; thesis ch. 7).
+two knobs of the stand-ins (Table 7.2; thesis ch. 7).
 
 The thesis' nine measured fluorescent surfaces are not available; :mod:`ccjax.materials` builds
 nine synthetic ones (excitation and emission bands, quantum yields). Two kinds of numbers of

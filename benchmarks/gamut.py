@@ -18,7 +18,7 @@ Prints, on World.barnard1999 with compiled (warm) functions, in one run:
 * a real-image-sized case: 64x64 Mondrian images (16 surfaces in 16x16 tiles) through the default
   preprocessing (ave5 block averages, padded surface lists), scenes/s;
 * peak resident memory after a chunked ECRULE-SCWIA-12 sweep at 64 surfaces (bounded by the chunk);
-* with ``--extended`` (issue 13): the extended labels (SP-, MET-, FL-, SP-ND-, ND-ECRULE-SCWIA-N)
+* with ``--extended``: the extended labels (SP-, MET-, FL-, SP-ND-, ND-ECRULE-SCWIA-N)
   beside their base method (the label without its extension prefix) at 8 and 64 surfaces, with the
   ratio of their CPU-normalised throughputs (acceptance: within 2x).
 
@@ -128,7 +128,7 @@ def _base_label(label: str) -> str:
 
 
 def _extended(world, labels, surfaces, repeats, cores, blocks):
-    """Throughput of each extended label beside its base method (issue 13: within 2x)."""
+    """Throughput of each extended label beside its base method (within 2x)."""
     bases = sorted({_base_label(label) for label in labels})
     models = {label: registry.fit(label, world) for label in [*bases, *labels]}
     print(f"extended labels beside their base method (median of {repeats} warm runs):")

@@ -1,5 +1,5 @@
 """Highlights on files: specular gamut mapping against matte gamut mapping and grey edge on
-synthetic raw images with clipped dielectric highlights (issue 13, acceptance 4; thesis ch. 8).
+synthetic raw images with clipped dielectric highlights (thesis ch. 8).
 
 The images (:func:`generate`) are the Mondrian renderer's (:func:`ccjax.scenes.mondrian_batch`)
 with the lights of ``examples/synthetic_raw_evaluation.py`` (70 % CIE daylight 4000–10000 K,

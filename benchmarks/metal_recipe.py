@@ -1,5 +1,5 @@
 """How far do Tables 8.2 and 8.3 depend on the metals? MET's gamut and the scenes' metallic
-highlights against the knobs of the recipe (issue 13; thesis §8.2-§8.3, spec ch08-12 A10/A11).
+highlights against the knobs of the recipe (thesis §8.2-§8.3, spec ch08-12 A10/A11).
 
 The thesis measured its metals' specular reflectance with a PR-650 and published neither the
 spectra nor their scale; ccjax computes brass, copper, gold, aluminium, silver and steel from
@@ -18,7 +18,7 @@ optical constants (normal-incidence Fresnel reflectance), so three things are ch
   DB-GW, RETINEX) depends on nothing else, and so do the spreads of Table 8.3's claims.
 
 For each gamut configuration it prints the six MET rows of Table 8.2 in all five columns (relative
-to the thesis; ``*`` marks a cell outside the issue's tolerance: 15 % in columns 1-3, 20 % in
+to the thesis; ``*`` marks a cell outside the tolerance: 15 % in columns 1-3, 20 % in
 4-5) and the table's claims (with the non-MET rows, which do not depend on it); for each scene
 configuration Tables 8.2's and 8.3's rows in the two metal columns, the count of cells within
 20 %, and both tables' claims. The scenes are those of ``ccjax reproduce 8.2`` / ``8.3`` (key 0,
@@ -48,7 +48,7 @@ from ccjax.world import World
 
 SELECTORS = (("MV", 12.0), ("ICA", 12.0), ("SCWIA", 12.0))
 TOLERANCE = (0.15, 0.15, 0.15, 0.20, 0.20)
-"""The issue's tolerance per column of Tables 8.2/8.3: 15 % in columns 1-3, 20 % in the metal columns."""
+"""The tolerance per column of Tables 8.2/8.3: 15 % in columns 1-3, 20 % in the metal columns."""
 SPECTRA = {
     "reflectance": lambda: materials.scene_metal_spectra(),
     "unit-mean": lambda: materials.metal_spectra(materials.METALS, unit_mean=True),

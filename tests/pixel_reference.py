@@ -1,4 +1,4 @@
-"""NumPy reference for the field's per-pixel protocol (issue 12): grey world and shades of grey on
+"""NumPy reference for the field's per-pixel protocol: grey world and shades of grey on
 every usable pixel of a 16-bit linear file, written from the definitions, not from ccjax.
 
 The protocol: a pixel is usable when no channel is 0 and no channel is at or above 0.98 of the

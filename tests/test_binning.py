@@ -1,4 +1,4 @@
-"""Colour by Correlation is scale-free (issue 17, the degenerate sweep's x1e-12 case): a scene
+"""Colour by Correlation is scale-free (the degenerate sweep's x1e-12 case): a scene
 multiplied by any positive factor has the same chromaticities, so the same bins and the same
 estimate; "black" is relative to the scene, not an absolute 1e-12."""
 

@@ -1,4 +1,4 @@
-"""Camera handling of the image commands (issue 12 item 3): world-based methods need --camera, the
+"""Camera handling of the image commands: world-based methods need --camera, the
 curve check flags ground truth of another camera's curves, and ``ccjax cameras`` lists cleanly."""
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def test_check_is_the_median_distance_to_the_nearest_white(worlds):
 
 
 def test_d5100_truth_is_flagged_against_the_d5300_and_matching_cameras_pass(worlds, lights):
-    """Acceptance (issue 12): synthetic truths of the Nikon D5100 checked against the D5300's
+    """Synthetic truths of the Nikon D5100 checked against the D5300's
     curves are flagged (and the reverse); every camera checked against its own curves passes."""
     rng = np.random.default_rng(1)
     d5100 = _truth(worlds["Nikon D5100"], lights, rng)

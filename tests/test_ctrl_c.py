@@ -1,4 +1,4 @@
-"""Issue 17, item 7: Ctrl-C at any time after ``ccjax`` starts, also while JAX is being imported,
+"""Ctrl-C at any time after ``ccjax`` starts, also while JAX is being imported,
 exits 130 with one line and no traceback.
 
 A real process gets a real SIGINT at several delays. ``-X importtime`` (Python's own import report,

@@ -1,4 +1,4 @@
-"""The degenerate-input sweep (issue 17): finite estimates and honest ``ok`` on every degenerate scene."""
+"""The degenerate-input sweep: finite estimates and honest ``ok`` on every degenerate scene."""
 
 from typing import ClassVar
 

@@ -1,4 +1,4 @@
-"""``ccjax evaluate`` as a researcher uses it (issue 12 item 4): each method on its own input,
+"""``ccjax evaluate`` as a researcher uses it: each method on its own input,
 inputs shared, the field's statistics, per-method seconds with compilation apart, fallback
 reasons, one CSV row per image and method, masks."""
 

@@ -1,4 +1,4 @@
-"""``ccjax evaluate --folds K --train METHODS`` (issue 15 item 3): each listed method trained within
+"""``ccjax evaluate --folds K --train METHODS``: each listed method trained within
 the folds, never on the fold it scores; folds from the ground truth's fold column (Gehler–Shi's
 ``File,R,G,B,Fold`` header) or seeded; the field's statistics per fold and pooled; clear errors."""
 
@@ -209,7 +209,7 @@ def test_folds_alone_follow_the_fold_column(setup, image_set, capsys):
 
 @pytest.mark.slow
 def test_issue15_acceptance_on_the_documented_generator(tmp_path):
-    """Issue 15's acceptance: the documented generator's 1,500 images, ``evaluate --folds 3 --train
+    """The documented generator's 1,500 images, ``evaluate --folds 3 --train
     RGB-C-by-C-MMSE``: the trained model's pooled median at least 30 % below the untrained fit to the
     default world and below grey edge (1, 6, 2); each fold's training (1,000 images) under 5 minutes
     of CPU (wall time on a shared machine is reported by the table, not asserted). About 10 minutes."""

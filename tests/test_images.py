@@ -124,7 +124,7 @@ def _patch_world(monkeypatch, world):
 
 @pytest.mark.parametrize("command", ["estimate", "correct", "evaluate"])
 def test_cli_folder_runs_go_on_past_bad_files(tmp_path, world, cache, monkeypatch, capsys, command):
-    """Issue 17: a folder run reports every bad file with its reason, processes the good ones
+    """A folder run reports every bad file with its reason, processes the good ones
     and exits non-zero (2). Header problems are found before any work, pixel-level ones (NaN,
     every pixel clipped, truncated data) in the work pass."""
     _patch_world(monkeypatch, world)

@@ -1,4 +1,4 @@
-"""Issue 17, reading inputs: ground-truth duplicates, conflicting stems, BOM, extra fields and
+"""Reading inputs safely: ground-truth duplicates, conflicting stems, BOM, extra fields and
 paths outside the folder; alpha as a mask; PNG chunk CRCs; header-only probing; compressed TIFF."""
 
 from __future__ import annotations

@@ -155,7 +155,7 @@ def _differentiable_examples():
 @pytest.mark.slow
 @pytest.mark.parametrize("label", _differentiable_examples())
 def test_grad_through_vmapped_model_on_1000_scenes(label, default_world):
-    """Issue 15 acceptance: jax.grad of the angular loss through vmap(model) with respect to the
+    """jax.grad of the angular loss through vmap(model) with respect to the
     input RGB is finite everywhere and non-zero, on 1000 scenes, for every estimator the registry
     calls differentiable."""
     from ccjax import scenes

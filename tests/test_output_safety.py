@@ -1,4 +1,4 @@
-"""Issue 17, items 1, 3 and 7: ``ccjax correct`` never replaces its inputs, outputs never collide,
+"""``ccjax correct`` never replaces its inputs, outputs never collide,
 existing outputs need ``--overwrite``, every file is written atomically, and paths and labels are
 checked before any work with one-line errors (exit 2; Ctrl-C: 130)."""
 
@@ -326,13 +326,13 @@ def test_ctrl_c_in_a_process_has_no_traceback(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# Item 3, acceptance: SIGINT and SIGKILL at random points while `ccjax correct` writes PNG and
+# Atomic writes under signals: SIGINT and SIGKILL at random points while `ccjax correct` writes PNG and
 # TIFF outputs. No file under a final name is ever partial (each is its old or its new contents,
 # byte for byte); after SIGINT (exit 130) no temporary file is left. Each trial is a child of a
 # fork server (tests/fork_server.py) that imported the command line once.
 
 KILL_TRIALS = 50
-"""Trials per signal in the slow test (the issue's count); the default suite runs QUICK_KILL_TRIALS."""
+"""Trials per signal in the slow test; the default suite runs QUICK_KILL_TRIALS."""
 
 QUICK_KILL_TRIALS = 4
 

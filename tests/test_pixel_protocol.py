@@ -1,4 +1,4 @@
-"""The field's per-pixel protocol on synthetic raw photographs (issue 12, acceptance 1 and 2).
+"""The field's per-pixel protocol on synthetic raw photographs.
 
 Mondrians of the default world's real camera (Canon EOS 5D Mark II) with specular highlights,
 shot noise, exposures that clip some of them, and zero channels (black-clamped noise), written as

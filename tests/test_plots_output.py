@@ -1,4 +1,4 @@
-"""Issue 17, item 7 for ``calibrate``, ``sharpen`` and ``indexing``: output paths (``--plot``,
+"""For ``calibrate``, ``sharpen`` and ``indexing``, output paths (``--plot``,
 ``--save``, ``--robustness``, ``--json``) are checked before any work; and every plot is written
 atomically (a temporary file in the same folder renamed into place)."""
 

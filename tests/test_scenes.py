@@ -126,7 +126,7 @@ def test_bad_arguments(default_world):
     ],
 )
 def test_sampling_parameters_are_validated(make, field):
-    """NaN, infinite, negative or out-of-range options are refused naming the field (issue 17 #8),
+    """NaN, infinite, negative or out-of-range options are refused naming the field,
     instead of producing NaN RGB."""
     with pytest.raises(ValueError, match=field.replace(".", r"\.")):
         make()
@@ -202,7 +202,7 @@ def test_sweep_keys_are_the_surface_count_stream():
     )
 
 
-# -- materials (issue 13): metallic highlights (§8.3) and fluorescent surfaces (§7.3) ------------
+# -- materials: metallic highlights (§8.3) and fluorescent surfaces (§7.3) -----------------------
 
 
 @pytest.fixture(scope="module")

@@ -115,7 +115,7 @@ def test_best_linear_and_diagonal_match_numpy(seed):
 
 @pytest.mark.external_data
 def test_sony_sharpness_ratio_matches_thesis(barnard_world):
-    """Table 5.1: BEST-LINEAR 3.0 / BEST-DIAGONAL 4.3 -> sharpness 0.70 (issue: within +-10 %)."""
+    """Table 5.1: BEST-LINEAR 3.0 / BEST-DIAGONAL 4.3 -> sharpness 0.70 (within +-10 %)."""
     out = sh.sharpness(barnard_world)
     assert out["ratio"] == pytest.approx(0.70, rel=0.10)
     assert out["best_linear"] == pytest.approx(3.0, rel=0.15)
@@ -348,7 +348,7 @@ def test_learning_signal_through_grey_world(small_world):
 @pytest.mark.slow
 @pytest.mark.external_data
 def test_table_5_1_unsharpened_rows(barnard_world):
-    """Table 5.1 without sharpening (500 scenes; the issue's tolerance is +-15 %)."""
+    """Table 5.1 without sharpening (500 scenes; tolerance +-15 %)."""
     from ccjax import thesis
 
     methods = ["BEST-LINEAR", "BEST-DIAGONAL", "ACTUAL", "NOTHING", "GW", "DB-GW", "RETINEX"]

@@ -127,7 +127,7 @@ def test_degenerate_scenes_give_finite_fallback(models, run, default_world):
 
 def test_constants_report_degenerate_scenes(models, run, default_world):
     """NOTHING and AVE-ILLUM keep their constant but say NO_DATA on scenes without a lit valid
-    surface (issue 17 #5), and ESTIMATED otherwise."""
+    surface, and ESTIMATED otherwise."""
     from ccjax.estimators.base import Status
 
     lit = np.random.default_rng(1).uniform(0.1, 1.0, (P, 3)).astype(np.float32)

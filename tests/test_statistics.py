@@ -1,4 +1,4 @@
-"""The field's statistics of per-image errors (issue 16 item 3): the 95th percentile and bootstrap
+"""The field's statistics of per-image errors: the 95th percentile and bootstrap
 confidence intervals of mean and median, against NumPy/SciPy and by their coverage."""
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def test_interval_agrees_with_the_bca_written_out(errors, statistic, size):
 
 
 def test_intervals_cover_the_true_mean_and_median():
-    """Acceptance (issue 16): 95 % intervals cover the true mean in at least 93 of 100 simulated
+    """95 % intervals cover the true mean in at least 93 of 100 simulated
     sets (gamma-distributed errors, 200 images; the true median from SciPy's quantile)."""
     shape, scale = 2.0, 1.5
     true_mean, true_median = shape * scale, stats.gamma.ppf(0.5, shape, scale=scale)
