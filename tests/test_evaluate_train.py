@@ -208,7 +208,7 @@ def test_folds_alone_follow_the_fold_column(setup, image_set, capsys):
 
 
 @pytest.mark.slow
-def test_issue15_acceptance_on_the_documented_generator(tmp_path):
+def test_training_beats_the_untrained_fit_on_the_documented_generator(tmp_path):
     """The documented generator's 1,500 images, ``evaluate --folds 3 --train
     RGB-C-by-C-MMSE``: the trained model's pooled median at least 30 % below the untrained fit to the
     default world and below grey edge (1, 6, 2); each fold's training (1,000 images) under 5 minutes
