@@ -29,7 +29,6 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 import correlation_oracle as oracle
 
 from ccjax import scenes
-from ccjax._colour import rg_numpy
 from ccjax.estimators import correlation, registry
 from ccjax.world import World
 
@@ -97,7 +96,8 @@ def main() -> None:
     sensors = np.asarray(world.camera.sensors, np.float64)
     lights = np.asarray(world.train_illuminants, np.float64)
     reflectances = np.asarray(world.reflectances, np.float64)
-    rg = rg_numpy(lights @ sensors)
+    light_rgb = lights @ sensors  # every training light has a positive response: no black rule needed
+    rg = light_rgb[:, :2] / light_rgb.sum(axis=1, keepdims=True)
     log_2d = oracle.chromaticity_log_probability(reflectances, lights, sensors)
     log_3d = oracle.brightness_log_probability(reflectances, lights, sensors)
     big = scenes.sample(jax.random.key(8), world, args.scenes, 8)

@@ -38,7 +38,6 @@ import numpy as np
 
 from ccjax import materials, metrics, scenes, thesis
 from ccjax.estimators import gamut, registry
-from ccjax.estimators.gamut import _extensions
 from ccjax.world import World
 
 SIZES = (4, 8)
@@ -115,9 +114,9 @@ def main() -> None:
         start = time.perf_counter()
         surfaces = _surfaces(yield_scale, width_scale)
         peak = np.asarray(surfaces.total_radiance_factor(np.ones(101))).max(axis=1)
-        characterised = _extensions.characterised_fluorescents(world, surfaces)
+        characterised = gamut.characterised_fluorescents(world, surfaces)
         fl_model = gamut.fit(
-            world, constraint="ECRULE", extension="FL", fluorescent=_extensions.default_fluorescent(world, surfaces)
+            world, constraint="ECRULE", extension="FL", fluorescent=gamut.default_fluorescent(world, surfaces)
         )
         fl = gamut.GamutMapping(fl_model, "SCWIA", 12)
         values = []

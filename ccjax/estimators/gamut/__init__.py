@@ -10,7 +10,12 @@ differentiable ``soft-`` versions of each (options ``tau``, ``kappa``, ``beta``,
 
 from ccjax.estimators.gamut._constraints_3d import Grid, evaluate
 from ccjax.estimators.gamut._engine import GridOptions
-from ccjax.estimators.gamut._extensions import MEASUREMENT_LIGHTS, Extension, characterised_fluorescents
+from ccjax.estimators.gamut._extensions import (
+    MEASUREMENT_LIGHTS,
+    Extension,
+    characterised_fluorescents,
+    default_fluorescent,
+)
 from ccjax.estimators.gamut._geometry import Facets, cone_planes, gamut_facets, nd_points
 from ccjax.estimators.gamut._model import GamutMapping, GamutModel, estimate_all, fit
 from ccjax.estimators.gamut._selectors import select
@@ -28,6 +33,7 @@ __all__ = [
     "characterised_fluorescents",
     "cip",
     "cone_planes",
+    "default_fluorescent",
     "estimate_all",
     "evaluate",
     "fit",

@@ -237,6 +237,13 @@ def default_fluorescent(world: World, surfaces=None) -> FluorescentResponses:
     light approximation's own error to every point: with the 11 lab lights a non-fluorescent white
     lands 0.046 (r,g) from the canonical white, and the FL gamut grew 7.6x the matte gamut's volume
     (FL-CRULE-MV 0.124 rg RMS at 4 surfaces against CRULE-MV's 0.075; 0.081 with this balance).
+
+    Arguments:
+        world: the world (its first training lights are the measurement lights).
+        surfaces: as :func:`characterised_fluorescents`.
+
+    Returns:
+        A ``FluorescentResponses`` callable: ``(illuminants (I, 101), sensors (101, 3)) -> (I, F, 3)``.
     """
     characterised = characterised_fluorescents(world, surfaces)
     measurement = np.asarray(characterised.lights, np.float64)
