@@ -1,5 +1,6 @@
-"""``ccjax evaluate``: methods scored on a folder of images with ground truth, optionally
-cross-validated and trained within folds (:func:`ccjax.experiments.folders.evaluate_folder`)."""
+"""``ccjax evaluate``: methods scored on folders of images with ground truth under a protocol (fitted
+to the world, K folds, trained within folds, leave-one-camera-out): the arguments become the
+values of :mod:`ccjax.evaluation` and one :func:`ccjax.evaluation.evaluate` call runs them."""
 
 from __future__ import annotations
 
@@ -68,7 +69,13 @@ def add_evaluate(sub) -> None:
         help="with --train: write each fold's trained model as DIR/<label>-fold<k>.eqx (several folders: "
         "DIR/<folder>/<label>-fold<k>.eqx; `ccjax.load_model` reads them)",
     )
-    p.add_argument("--methods", type=label_list, required=True, help="comma-separated labels")
+    p.add_argument(
+        "--methods",
+        type=label_list,
+        required=True,
+        help="comma-separated labels and trained model files (.eqx, `ccjax train --out`; a model trained for "
+        "another camera than a folder's is refused)",
+    )
     p.add_argument(
         "--folds",
         type=int,
@@ -87,6 +94,29 @@ def add_evaluate(sub) -> None:
         "never on the fold it scores, and reported as '<label> trained' beside --methods (which are then fitted "
         "to the world as without --folds). Folds come from the ground truth's fold column when it has one, else "
         "a random assignment seeded by --seed; statistics per fold and pooled",
+    )
+    p.add_argument(
+        "--leave-one-camera-out",
+        action="store_true",
+        help="with --train and several folders, each with a camera (--camera-for): score each folder by models "
+        "trained only on the OTHER folders, their images and ground truth mapped into its camera through the two "
+        "cameras' curves (ccjax.transfer); one row per folder, then the geometric mean. Folders without a camera "
+        "are named and left out",
+    )
+    p.add_argument(
+        "--camera-map",
+        choices=["per-light", "global"],
+        default="per-light",
+        help="with --leave-one-camera-out: the camera-to-camera map (per-light: the 3x3 of each image's own light, "
+        "interpolated between the world's lights; global: one 3x3). Default: %(default)s",
+    )
+    p.add_argument(
+        "--rendered",
+        type=int,
+        default=0,
+        metavar="N",
+        help="with --leave-one-camera-out: also pool N images rendered through the scored camera's curves "
+        "(ccjax.training.render_examples; default 0)",
     )
     p.add_argument(
         "--epochs",
@@ -142,7 +172,7 @@ def model_outputs(args) -> list[tuple[str, str]]:
     """``("--models", file)`` of every model file and record ``--models`` will write."""
     if args.models is None or not args.train or args.folds is None:
         return []
-    from ccjax.experiments.folder_sets import fold_model_file
+    from ccjax.evaluation.sets import fold_model_file
 
     several = len(args.directories) > 1
     folders = [
@@ -201,10 +231,26 @@ def check_folds(args) -> None:
     if args.train is not None:
         if not args.train:
             raise ValueError("--train: expected comma-separated method labels, got none")
-        if args.folds is None:
-            raise ValueError("--train: needs --folds K (each method is trained on the other folds' images)")
+        if args.folds is None and not args.leave_one_camera_out:
+            raise ValueError(
+                "--train: needs --folds K (each method is trained on the other folds' images) or "
+                "--leave-one-camera-out (on the other cameras' folders)"
+            )
         if len(set(args.train)) != len(args.train):
             raise ValueError(f"--train: a label is given twice ({', '.join(args.train)})")
+    if args.leave_one_camera_out:
+        if args.train is None:
+            raise ValueError("--leave-one-camera-out: give --train METHODS (trained on the other cameras' folders)")
+        if args.folds is not None:
+            raise ValueError("--leave-one-camera-out: each folder is scored whole; leave out --folds")
+        if len(args.directories) < 2:
+            raise ValueError("--leave-one-camera-out: needs at least two folders, each with --camera-for DIR=CAMERA")
+        if args.models is not None:
+            raise ValueError("--models: writes the fold models of --folds K --train; not with --leave-one-camera-out")
+    elif args.camera_map != "per-light" or args.rendered:
+        raise ValueError("--camera-map, --rendered: apply to --leave-one-camera-out only")
+    if args.rendered < 0:
+        raise ValueError(f"--rendered: expected a non-negative number of images, got {args.rendered}")
     if args.epochs is not None:
         if args.train is None:
             raise ValueError("--epochs: applies to --train only")
@@ -231,27 +277,45 @@ def header(evaluation, args) -> str:
     return f"{world}; preprocessing: {preparation}{folds}"
 
 
-def evaluation_options(args) -> dict:
-    """The keyword arguments one folder's and several folders' evaluations share."""
-    shared = {name: getattr(args, name) for name in ("folds", "train", "epochs", "seed", "preprocessing")}
-    return shared | {
-        "dark": image_options.dark_fraction(args),
-        "read_options": image_options.read_options(args),
-        "allow_missing": args.allow_missing,
-        "progress": not args.no_progress,
-        "log": lambda line: print(line, file=sys.stderr),
-    }
+def evaluation_values(args, cameras: dict[str, str | None], pretraining):
+    """The evaluation the arguments ask for, as values: the folders, the protocol, the read options
+    and the training options (:mod:`ccjax.evaluation`).
+
+    Returns:
+        ``(folders, protocol, ReadOptions, TrainingOptions)``.
+    """
+    from ccjax import evaluation
+
+    folders = [
+        evaluation.FolderSet(pathlib.Path(directory), pathlib.Path(truth), cameras[directory])
+        for directory, truth in zip(args.directories, ground_truths(args), strict=True)
+    ]
+    if args.leave_one_camera_out:
+        protocol = evaluation.LeaveOneCameraOut(tuple(args.train), args.camera_map, args.rendered)
+    elif args.train:
+        protocol = evaluation.TrainedInFolds(args.folds, tuple(args.train))
+    else:
+        protocol = evaluation.FittedToWorld() if args.folds is None else evaluation.KFolds(args.folds)
+    read = evaluation.ReadOptions(
+        image=image_options.read_options(args),
+        masks=args.mask,
+        allow_missing=args.allow_missing,
+        preprocessing=args.preprocessing,
+        dark=image_options.dark_fraction(args),
+    )
+    options = evaluation.TrainingOptions(seed=args.seed, epochs=args.epochs, pretraining=pretraining)
+    return folders, protocol, read, options
 
 
 def run_evaluate(args) -> int:
-    from ccjax.experiments.folders import evaluate_folder
+    from ccjax import _cache, evaluation
     from ccjax.runs.sources import raise_failures
 
     start = time.perf_counter()
     writer = start_processes()
     check_folds(args)
     cameras = check_folders(args)
-    image_options.check_labels(args.methods + (args.train or []), args)
+    image_options.check_labels(labels_of(args.methods) + (args.train or []), args)
     check_outputs(
         evaluate_inputs(args),
         [("--json", args.json), ("--csv", args.csv), ("--plot", args.plot), *model_outputs(args)],
@@ -263,25 +327,49 @@ def run_evaluate(args) -> int:
         raise SystemExit("--pretrain-camera: applies to --train (the labels trained within the folds)")
     if pretraining is not None and len(args.directories) > 1:
         raise SystemExit("--pretrain-camera: applies to one folder (its camera's curves render the images)")
-    if len(args.directories) > 1:
-        return run_folder_sets(args, cameras, writer, start)
-    args.camera = cameras[args.directories[0]]
-    image_options.require_camera(args.methods + (args.train or []), args)
+    check_camera_option(args)
+    several = len(args.directories) > 1
+    if not several or (not any(cameras.values()) and args.world == "default"):
+        # One folder, or no folder with a camera: world-based methods would run on curves the
+        # images were never matched to (several folders: they would be left out of every folder).
+        args.camera = cameras[args.directories[0]]
+        image_options.require_camera(labels_of(args.methods) + (args.train or []), args)
+    _cache.enable_compilation_cache()
+    folders, protocol, read, options = evaluation_values(args, cameras, pretraining)
     try:
-        evaluation = evaluate_folder(
-            args.directories[0],
-            ground_truths(args)[0],
+        result = evaluation.evaluate(
+            folders,
             args.methods,
-            world=image_options.image_world(args),
-            masks=args.mask,
-            check_camera=args.camera is not None or args.world != "default",
-            **evaluation_options(args),
-            pretraining=pretraining,
+            protocol,
+            read=read,
+            options=options,
+            world_kind=args.world,
+            data_dir=args.data_dir,
+            progress=not args.no_progress,
+            log=lambda line: print(line, file=sys.stderr),
         )
     except ValueError as error:
         raise image_options.as_option_error(error) from None
     if not writer:  # under jax.distributed every process holds the pooled results; one reports them
         return 0
+    if several:
+        report_sets(result, args)
+    else:
+        report_folder(result.sets[0], args)
+    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    failures = [line for scored in result.sets for line in scored.evaluation.failures]
+    raise_failures(failures, sum(scored.evaluation.total for scored in result.sets))
+    return 0
+
+
+def labels_of(methods: list[str]) -> list[str]:
+    """The registry labels among ``--methods`` (model files are checked when they are read)."""
+    return [method for method in methods if not method.endswith(".eqx")]
+
+
+def report_folder(scored, args) -> None:
+    """One folder's header, tables and outputs (``--json``, ``--csv``, ``--plot``, ``--models``)."""
+    evaluation = scored.evaluation
     print(header(evaluation, args))
     if evaluation.unlisted:
         print(f"not scored, no ground-truth row ({len(evaluation.unlisted)}): {', '.join(evaluation.unlisted)}")
@@ -297,61 +385,30 @@ def run_evaluate(args) -> int:
 
         write_plot(args.plot, lambda file: plot_image_errors(evaluation.results, file), overwrite=args.overwrite)
     if args.models:
-        from ccjax.experiments.folder_sets import save_fold_models
+        from ccjax.evaluation import save_fold_models
 
-        camera = image_options.image_world(args).camera.name
-        for path in save_fold_models(evaluation, args.models, camera, world_seed=args.seed, overwrite=args.overwrite):
+        for path in save_fold_models(
+            evaluation, args.models, scored.world_camera, world_seed=args.seed, overwrite=args.overwrite
+        ):
             print(f"wrote {path}")
-    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
-    raise_failures(evaluation.failures, evaluation.total)
-    return 0
 
 
-def run_folder_sets(args, cameras: dict, writer: bool, start: float) -> int:
-    """Several folders: each evaluated on its own with its camera, then the geometric means
-    (:func:`ccjax.experiments.folder_sets.evaluate_folder_sets`)."""
-    from ccjax import _cache
-    from ccjax.experiments.folder_sets import FolderSet, evaluate_folder_sets
-    from ccjax.runs.sources import raise_failures
-
-    check_camera_option(args)
-    labels = args.methods + (args.train or [])
-    if not any(cameras.values()) and args.world == "default":
-        # No folder has a camera: world-based methods would be left out of every folder.
-        image_options.require_camera(labels, args)
-    _cache.enable_compilation_cache()
-    folders = [
-        FolderSet(pathlib.Path(directory), pathlib.Path(truth), cameras[directory])
-        for directory, truth in zip(args.directories, ground_truths(args), strict=True)
-    ]
-    try:
-        evaluation = evaluate_folder_sets(
-            folders,
-            args.methods,
-            world_kind=args.world,
-            data_dir=args.data_dir,
-            **evaluation_options(args),
-        )
-    except ValueError as error:
-        raise image_options.as_option_error(error) from None
-    if not writer:
-        return 0
+def report_sets(result, args) -> None:
+    """Several folders: the per-folder rows and the geometric means, ``--json``, ``--models``."""
     preparation = args.preprocessing or "each method's default"
     folds = f"; {args.folds} folds in each folder" if args.folds else ""
-    print(f"{len(folders)} folders; preprocessing: {preparation}{folds}")
-    for result in evaluation.sets:
-        if result.evaluation.check is not None:
-            print(f"{result.folder.label}: {result.evaluation.check.message()}")
-    print(evaluation.table(), flush=True)
+    if args.leave_one_camera_out:
+        folds = f"; leave-one-camera-out: {', '.join(args.train)} trained on the other folders ({args.camera_map} maps)"
+    print(f"{len(args.directories)} folders; preprocessing: {preparation}{folds}")
+    for scored in result.sets:
+        if scored.evaluation.check is not None:
+            print(f"{scored.folder.label}: {scored.evaluation.check.message()}")
+    print(result.table(), flush=True)
     if args.json:
-        write(args.json, json.dumps(evaluation.report(), indent=1), overwrite=args.overwrite)
+        write(args.json, json.dumps(result.report(), indent=1), overwrite=args.overwrite)
     if args.models:
-        for path in evaluation.save_models(args.models, seed=args.seed, overwrite=args.overwrite):
+        for path in result.save_models(args.models, seed=args.seed, overwrite=args.overwrite):
             print(f"wrote {path}")
-    print(f"done in {time.perf_counter() - start:.1f} s", file=sys.stderr)
-    failures = [line for result in evaluation.sets for line in result.evaluation.failures]
-    raise_failures(failures, sum(result.evaluation.total for result in evaluation.sets))
-    return 0
 
 
 COMMANDS = [add_evaluate]

@@ -18,12 +18,11 @@ without pretraining from spectra) are submodules imported on their own
 cheap.
 """
 
+from ccjax.evaluation.camera_check import CurveCheck, curve_check
 from ccjax.experiments._cameras import (
     STUDY_METHODS,
-    CurveCheck,
     SharpeningStudy,
     camera_listing,
-    curve_check,
     plot_curve_check,
     sfu321_check,
     sharpening_study,

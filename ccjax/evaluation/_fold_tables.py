@@ -1,5 +1,5 @@
 """The text tables of a folder evaluation with folds: the field's statistics per fold and pooled,
-and what each fold's training did (:class:`ccjax.experiments.folders.FolderEvaluation`'s
+and what each fold's training did (:class:`ccjax.evaluation.FolderEvaluation`'s
 report)."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import typing
 
 import numpy as np
 
-if typing.TYPE_CHECKING:  # importing ccjax.experiments stays cheap: evaluation loads on use
-    from ccjax.experiments.evaluation import ImageResults
+if typing.TYPE_CHECKING:  # the results module loads on use
+    from ccjax.evaluation.results import ImageResults
 
 __all__ = ["fold_table", "training_table"]
 

@@ -1,0 +1,78 @@
+"""Photo evaluation: methods scored on folders of photographs with ground truth, under a protocol.
+
+A protocol is a value (:mod:`ccjax.evaluation.protocols`), read and training options are values
+(:class:`ReadOptions`, :class:`TrainingOptions`), and :func:`evaluate` runs them over
+:class:`FolderSet` s::
+
+    from ccjax import evaluation
+
+    folders = [evaluation.FolderSet(Path("cube"), Path("cube/groundtruth.csv"), "Canon EOS 600D"), ...]
+    result = evaluation.evaluate(folders, ["shades-of-grey-p6"], evaluation.LeaveOneCameraOut(("FFCC",)))
+    print(result.table())
+
+* :class:`FittedToWorld`, :class:`KFolds`, :class:`TrainedInFolds` -- each folder on its own;
+* :class:`LeaveOneCameraOut`, :class:`TrainOn` -- trained on other cameras' folders mapped into
+  the scored folder's camera (:mod:`ccjax.evaluation.cross_camera`);
+* :class:`ImageResults` -- per-image estimates and the field's statistics; :func:`fold_worlds`;
+  :func:`curve_check` -- the ground truth against a camera's curves.
+"""
+
+from ccjax.evaluation.camera_check import CURVE_THRESHOLD, CurveCheck, curve_check
+from ccjax.evaluation.cross_camera import (
+    CAMERA_MAPS,
+    LeaveOneCameraOut,
+    TrainOn,
+    pooled_source,
+    train_for_camera,
+    train_pooled,
+)
+from ccjax.evaluation.folders import FolderData, FolderEvaluation, FolderModels, read_folder
+from ccjax.evaluation.options import ReadOptions, TrainingOptions
+from ccjax.evaluation.protocols import AbstractProtocol, FittedToWorld, KFolds, Round, TrainedInFolds
+from ccjax.evaluation.results import ImageResults, fold_worlds, run_images
+from ccjax.evaluation.sets import (
+    PROTOCOL_STATISTICS,
+    FolderSet,
+    SetResult,
+    SetsEvaluation,
+    evaluate,
+    evaluate_data,
+    geometric_mean,
+    geometric_means,
+    save_fold_models,
+)
+
+__all__ = [
+    "CAMERA_MAPS",
+    "CURVE_THRESHOLD",
+    "PROTOCOL_STATISTICS",
+    "AbstractProtocol",
+    "CurveCheck",
+    "FittedToWorld",
+    "FolderData",
+    "FolderEvaluation",
+    "FolderModels",
+    "FolderSet",
+    "ImageResults",
+    "KFolds",
+    "LeaveOneCameraOut",
+    "ReadOptions",
+    "Round",
+    "SetResult",
+    "SetsEvaluation",
+    "TrainOn",
+    "TrainedInFolds",
+    "TrainingOptions",
+    "curve_check",
+    "evaluate",
+    "evaluate_data",
+    "fold_worlds",
+    "geometric_mean",
+    "geometric_means",
+    "pooled_source",
+    "read_folder",
+    "run_images",
+    "save_fold_models",
+    "train_for_camera",
+    "train_pooled",
+]
