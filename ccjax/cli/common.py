@@ -82,19 +82,35 @@ def check_camera_name(args) -> None:
     Raises:
         ValueError: the name is not one ccjax can build (close names suggested).
     """
+    check_camera(getattr(args, "camera", None), getattr(args, "data_dir", None))
+
+
+def check_camera(name: str | None, data_dir=None, option: str = "--camera") -> None:
+    """Refuse an unknown camera name given by ``option`` before any work, pointing to ``ccjax cameras``.
+
+    Arguments:
+        name: the camera's name (None: not given, nothing to check).
+        data_dir: the external data directory (its cameras are known too).
+        option: the option that gave it, for the message.
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: the name is not one ccjax can build (close names suggested).
+    """
     import difflib
 
     from ccjax.camera import cameras
 
-    name = getattr(args, "camera", None)
     if name is None:
         return
-    known = cameras(getattr(args, "data_dir", None))
+    known = cameras(data_dir)
     if name not in known:
         close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
         hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
         raise ValueError(
-            f"--camera: unknown camera {name!r}{hint} `ccjax cameras` lists the {len(known)} names "
+            f"{option}: unknown camera {name!r}{hint} `ccjax cameras` lists the {len(known)} names "
             "('Sony DXC-930' and 'Jiang: <model>' need the external data, --data-dir)"
         )
 

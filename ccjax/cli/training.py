@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import sys
 
+from ccjax.cli import image_options
 from ccjax.cli.common import (
     build_world,
     check_outputs,
@@ -33,7 +34,47 @@ def add_train(sub) -> None:
         "it has one). Without DIR, --method NEURAL-NET / SP-NEURAL-NET trains the thesis net on synthetic "
         "scenes and caches its weights (what train-net does).",
     )
-    p.add_argument("directory", nargs="?", default=None, help="image folder (omit for the nets' synthetic training)")
+    p.add_argument(
+        "directory",
+        nargs="*",
+        default=[],
+        help="image folder (omit for the nets' synthetic training); several with --target-camera: each "
+        "folder's images mapped into that camera through the curves (--camera-for DIR=CAMERA each)",
+    )
+    p.add_argument(
+        "--target-camera",
+        default=None,
+        metavar="CAMERA",
+        help="train a model for this camera (embedded name, see `ccjax cameras`) from folders taken with other "
+        "cameras: each folder's images and ground truth mapped into its raw space (ccjax.transfer); no "
+        "photograph of it is needed",
+    )
+    p.add_argument(
+        "--camera-for",
+        action="append",
+        default=[],
+        metavar="FOLDER=CAMERA",
+        help="with --target-camera: the camera of one folder (its name or path as given); repeat per folder",
+    )
+    p.add_argument(
+        "--ground-truth-name",
+        default=None,
+        metavar="NAME",
+        help="the ground truth's file name inside each folder (default groundtruth.csv)",
+    )
+    p.add_argument(
+        "--camera-map",
+        choices=["per-light", "global"],
+        default="per-light",
+        help="with --target-camera: the camera-to-camera map (default: %(default)s)",
+    )
+    p.add_argument(
+        "--rendered",
+        type=int,
+        default=0,
+        metavar="N",
+        help="with --target-camera: also train on N images rendered through its curves (default 0)",
+    )
     p.add_argument("--ground-truth", default=None, help="CSV image,r,g,b[,fold] (default: DIR/groundtruth.csv)")
     p.add_argument("--method", required=True, help="registry label, e.g. RGB-C-by-C-MMSE")
     p.add_argument("--folds", type=int, default=None, help="cross-validate with K folds first")
@@ -94,6 +135,11 @@ def run_train_net(args) -> int:
 def run_train(args) -> int:
     from pathlib import Path
 
+    if args.target_camera is not None or len(args.directory) > 1:
+        return run_train_for_camera(args)
+    if args.camera_for or args.ground_truth_name or args.camera_map != "per-light" or args.rendered:
+        raise ValueError("--camera-for, --ground-truth-name, --camera-map, --rendered: apply with --target-camera")
+    args.directory = args.directory[0] if args.directory else None
     if args.directory is None:
         if args.method not in NETS and not args.specular:
             raise SystemExit(
@@ -164,6 +210,100 @@ def run_train(args) -> int:
     if args.out:
         print(f"saved {args.out}")
     return 0
+
+
+def run_train_for_camera(args) -> int:
+    """``ccjax train DIR [DIR ...] --target-camera C``: a model for a camera none of the folders was
+    taken with (:func:`ccjax.evaluation.train_for_camera`)."""
+    import json
+    from pathlib import Path
+
+    from ccjax import evaluation
+    from ccjax.cli.common import check_camera
+    from ccjax.cli.image_options import dark_fraction
+
+    if args.target_camera is None:
+        raise ValueError("--target-camera: several folders train a model for one camera; name it")
+    if not args.directory:
+        raise ValueError("train: give the labelled folders to train on")
+    if args.world != "default" or args.folds is not None or args.pretrain_camera is not None:
+        raise ValueError(
+            "--target-camera: trains one model on every folder; leave out --world, --folds, --pretrain-camera"
+        )
+    if args.rendered < 0:
+        raise ValueError(f"--rendered: expected a non-negative number of images, got {args.rendered}")
+    start_processes()
+    check_camera(args.target_camera, args.data_dir, "--target-camera")
+    for entry in args.camera_for:
+        check_camera(entry.partition("=")[2].strip() or None, args.data_dir, "--camera-for")
+    cameras = folder_cameras(args.directory, args.camera_for, args.camera)
+    name = args.ground_truth_name or "groundtruth.csv"
+    if args.ground_truth is not None:
+        raise ValueError("--ground-truth: with several folders give --ground-truth-name NAME (the file in each folder)")
+    folders = [evaluation.FolderSet(Path(d), Path(d) / name, cameras[d]) for d in args.directory]
+    inputs = [path for folder in folders for path in train_inputs(folder.directory, folder.ground_truth)]
+    check_outputs(inputs, train_outputs(args.out), overwrite=args.overwrite)
+    read = evaluation.ReadOptions(image=read_options(args), dark=dark_fraction(args))
+    options = evaluation.TrainingOptions(seed=args.seed, epochs=args.epochs)
+    try:
+        model, log, record = evaluation.train_for_camera(
+            folders,
+            args.method,
+            args.target_camera,
+            camera_map=args.camera_map,
+            rendered=args.rendered,
+            read=read,
+            options=options,
+            progress=not args.no_progress,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except ValueError as error:
+        raise image_options.as_option_error(error) from None
+    print(
+        f"{args.method} for the {args.target_camera}: trained on {record['images']} images "
+        f"({', '.join(f'{k} {v}' for k, v in record['source_images'].items())}; {args.camera_map} maps) "
+        f"in {log.seconds:.1f} s"
+    )
+    if args.out:
+        from ccjax.runs import store
+
+        store.save_trained(
+            args.out,
+            model,
+            label=args.method,
+            camera=args.target_camera,
+            world_seed=args.seed,
+            record=record,
+            overwrite=args.overwrite,
+        )
+        print(f"saved {args.out}")
+    else:
+        print(json.dumps(record, indent=1))
+    return 0
+
+
+def folder_cameras(directories, entries, default) -> dict:
+    """``{folder: camera}`` from ``--camera-for FOLDER=CAMERA`` entries (``--camera`` for the others);
+    a folder without a camera is refused (its images cannot be mapped)."""
+    import os
+
+    cameras = {directory: default for directory in directories}
+    names = {os.path.basename(os.path.normpath(directory)): directory for directory in directories}
+    for entry in entries:
+        folder, equals, camera = entry.partition("=")
+        target = folder if folder in cameras else names.get(folder)
+        if not equals or not camera.strip() or target is None:
+            raise ValueError(
+                f"--camera-for: expected FOLDER=CAMERA with FOLDER one of {', '.join(sorted(names))}, got {entry!r}"
+            )
+        cameras[target] = camera.strip()
+    missing = [directory for directory, camera in cameras.items() if not camera]
+    if missing:
+        raise ValueError(
+            f"--camera-for: no camera for {', '.join(missing)}; give --camera-for DIR=CAMERA (its curves map its "
+            "images into the target camera)"
+        )
+    return cameras
 
 
 def train_inputs(directory, truth) -> list:
