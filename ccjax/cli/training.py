@@ -220,7 +220,6 @@ def run_train_for_camera(args) -> int:
 
     from ccjax import evaluation
     from ccjax.cli.common import check_camera
-    from ccjax.cli.image_options import dark_fraction
 
     if args.target_camera is None:
         raise ValueError("--target-camera: several folders train a model for one camera; name it")
@@ -243,7 +242,7 @@ def run_train_for_camera(args) -> int:
     folders = [evaluation.FolderSet(Path(d), Path(d) / name, cameras[d]) for d in args.directory]
     inputs = [path for folder in folders for path in train_inputs(folder.directory, folder.ground_truth)]
     check_outputs(inputs, train_outputs(args.out), overwrite=args.overwrite)
-    read = evaluation.ReadOptions(image=read_options(args), dark=dark_fraction(args))
+    read = evaluation.ReadOptions(image=read_options(args))
     options = evaluation.TrainingOptions(seed=args.seed, epochs=args.epochs)
     try:
         model, log, record = evaluation.train_for_camera(

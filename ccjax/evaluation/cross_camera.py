@@ -153,9 +153,9 @@ def pooled_source(training: Sequence[FolderData], target: str, camera_map: str, 
     Returns:
         :class:`ccjax.runs.pooled.PooledImages`.
     """
-    from ccjax import transfer
     from ccjax.runs import store
     from ccjax.runs.pooled import MappedFolder, PooledImages
+    from ccjax.transfer import fit_camera_map
 
     parts = []
     for folder in training:
@@ -163,7 +163,7 @@ def pooled_source(training: Sequence[FolderData], target: str, camera_map: str, 
             raise ValueError(f"training: folder {folder.label} has no camera; its images cannot be mapped")
         fitted = None
         if folder.camera != target:
-            fitted = transfer.fit_camera_map(
+            fitted = fit_camera_map(
                 folder.camera, target, kind=camera_map, world=store.world("default", folder.camera, seed=seed)
             )
         parts.append(MappedFolder(folder.source, folder.truth, folder.path_names, folder.camera, fitted))
