@@ -4,7 +4,6 @@ values of :mod:`ccjax.evaluation` and one :func:`ccjax.evaluation.evaluate` call
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import pathlib
@@ -191,7 +190,7 @@ def check_folders(args) -> dict[str, str | None]:
     Returns:
         ``{folder as given: its camera or None}``.
     """
-    from ccjax.cli.common import check_camera_name
+    from ccjax.cli.common import check_camera
 
     several = len(args.directories) > 1
     if (args.ground_truth is None) == (args.ground_truth_name is None):
@@ -216,7 +215,7 @@ def check_folders(args) -> dict[str, str | None]:
             raise ValueError(
                 f"--camera-for: expected FOLDER=CAMERA with FOLDER one of {', '.join(sorted(names))}, got {entry!r}"
             )
-        check_camera_name(argparse.Namespace(camera=camera.strip(), data_dir=args.data_dir))
+        check_camera(camera.strip(), args.data_dir, "--camera-for")
         cameras[target] = camera.strip()
     if args.camera_for and args.world != "default":
         raise ValueError("--camera-for: applies to --world default only")

@@ -14,6 +14,10 @@ OPTION_NAMES = {
     "masks": "--mask",
     "ground_truth": "--ground-truth",
     "allow_missing": "--allow-missing",
+    "methods": "--methods",
+    "camera_map": "--camera-map",
+    "rendered": "--rendered",
+    "seed": "--seed",
 }
 """The command-line option of each library argument that errors name (see :func:`as_option_error`)."""
 

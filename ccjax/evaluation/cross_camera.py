@@ -13,7 +13,6 @@ through the scored camera's curves, and the learned methods trained on the pool.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Literal
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -71,7 +70,7 @@ class LeaveOneCameraOut(AbstractProtocol):
     """
 
     train: tuple[str, ...] = eqx.field(static=True)
-    camera_map: Literal["global", "per-light"] = eqx.field(static=True, default="per-light")
+    camera_map: str = eqx.field(static=True, default="per-light")
     rendered: int = eqx.field(static=True, default=0)
 
     def __check_init__(self) -> None:
@@ -110,7 +109,7 @@ class TrainOn(AbstractProtocol):
 
     training: tuple[int, ...] = eqx.field(static=True)
     train: tuple[str, ...] = eqx.field(static=True)
-    camera_map: Literal["global", "per-light"] = eqx.field(static=True, default="per-light")
+    camera_map: str = eqx.field(static=True, default="per-light")
     rendered: int = eqx.field(static=True, default=0)
 
     def __check_init__(self) -> None:
@@ -166,7 +165,7 @@ def pooled_source(training: Sequence[FolderData], target: str, camera_map: str, 
             fitted = fit_camera_map(
                 folder.camera, target, kind=camera_map, world=store.world("default", folder.camera, seed=seed)
             )
-        parts.append(MappedFolder(folder.source, folder.truth, folder.path_names, folder.camera, fitted))
+        parts.append(MappedFolder(folder.source, folder.truth, folder.path_names, folder.camera, fitted, folder.label))
     return PooledImages(parts, target)
 
 
@@ -269,7 +268,7 @@ def train_pooled(
     if fine_tune:
         start, _ = learning.pretrain(start, options.pretraining, rule, schedule, progress=progress)
     if log is not None:
-        cameras = ", ".join(f"{camera} {count}" for camera, count in pool.counts().items())
+        cameras = ", ".join(f"{folder} {count}" for folder, count in pool.counts().items())
         log(f"training {label} for the {pool.target} on {len(examples)} images ({cameras}; rendered {rendered})")
     model, record = learning.train_model(start, examples, schedule, progress=progress, fine_tune=fine_tune)
     return model, record, len(examples)

@@ -23,7 +23,8 @@ from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.reading import LinearImage
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, input_shapes, run_model
 from ccjax.runs import hosts
-from ccjax.runs.sources import ImageFolder, check_preprocessing, input_rules
+from ccjax.runs.pooled import ImageSource
+from ccjax.runs.sources import check_preprocessing, input_rules
 
 
 @dataclass
@@ -99,7 +100,7 @@ def _timed(model, rgb, mask) -> tuple[Estimate, float]:
 
 
 def run_models(
-    source: ImageFolder,
+    source: ImageSource,
     models: Mapping[str, Sequence[AbstractEstimator]],
     *,
     items: Sequence[int] | np.ndarray | None = None,
@@ -243,7 +244,7 @@ FAILURE_BYTES = 1024
 """Longest failure record pooled between processes (longer ones are cut, with an ellipsis)."""
 
 
-def _pool(source: ImageFolder, every: np.ndarray, done, estimates, ok, status, failures):
+def _pool(source: ImageSource, every: np.ndarray, done, estimates, ok, status, failures):
     """Every process's per-item results and failure records, in item order (``hosts.gather``)."""
     local = every[hosts.process_share(len(every))]
     records = np.zeros((len(local), FAILURE_BYTES), np.uint8)

@@ -27,7 +27,7 @@ from ccjax.preprocessing import DEFAULT_DARK, Preprocessing
 from ccjax.runs.sources import ImageFolder, Prepared
 from ccjax.transfer import AbstractCameraMap
 
-__all__ = ["MappedFolder", "PooledImages", "map_input"]
+__all__ = ["ImageSource", "MappedFolder", "PooledImages", "map_input"]
 
 
 @eqx.filter_jit
@@ -67,6 +67,7 @@ class MappedFolder:
         names: the ground-truth name of each file.
         camera: the camera that took them (its curves, or a named stand-in's).
         camera_map: the map to the target camera; None when the folder's camera is the target.
+        label: the folder's name in names and counts (default: the camera's).
     """
 
     images: ImageFolder
@@ -74,6 +75,7 @@ class MappedFolder:
     names: list[str]
     camera: str
     camera_map: AbstractCameraMap | None = None
+    label: str = ""
 
     def __post_init__(self) -> None:
         lights = np.asarray(self.lights, np.float32)
@@ -82,6 +84,7 @@ class MappedFolder:
         if len(self.names) != len(self.images):
             raise ValueError(f"names: expected {len(self.images)}, one per image, got {len(self.names)}")
         self.lights = lights
+        self.label = self.label or self.camera
 
     def mapped_lights(self) -> np.ndarray:
         """``(N, 3)`` the ground truth in the target camera, brightest channel 1."""
@@ -131,8 +134,8 @@ class PooledImages:
 
     @property
     def names(self) -> list[str]:
-        """Each item's ground-truth name, prefixed with its camera (names repeat across folders)."""
-        return [f"{part.camera}/{name}" for part in self.parts for name in part.names]
+        """Each item's ground-truth name, prefixed with its folder's label (names repeat across folders)."""
+        return [f"{part.label}/{name}" for part in self.parts for name in part.names]
 
     def usable(self) -> list[int]:
         """The items whose header passed the checks."""
@@ -149,8 +152,8 @@ class PooledImages:
         return np.concatenate([part.mapped_lights() for part in self.parts]).astype(np.float32)
 
     def counts(self) -> dict[str, int]:
-        """``{camera: images}`` of each part."""
-        return {part.camera: len(part.images) for part in self.parts}
+        """``{folder label: images}`` of each part."""
+        return {part.label: len(part.images) for part in self.parts}
 
     def prepared(
         self,
@@ -188,3 +191,7 @@ class PooledImages:
                         for name, (rgb, mask) in item.inputs.items()
                     }
                 yield item
+
+
+ImageSource = ImageFolder | PooledImages
+"""What the image loop and the training readers iterate: one folder, or several cameras' pooled."""

@@ -16,7 +16,8 @@ from tqdm.auto import tqdm
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.ground_truth import match_ground_truth, read_ground_truth
 from ccjax.preprocessing import DEFAULT_DARK, DEFAULT_PREPROCESSING, Preprocessing, input_rule, resolve
-from ccjax.runs.sources import ImageFolder, image_folder
+from ccjax.runs.pooled import ImageSource
+from ccjax.runs.sources import image_folder
 
 
 class Examples(eqx.Module):
@@ -74,7 +75,7 @@ def stack_inputs(inputs, masks, input_kind: str) -> tuple[np.ndarray, np.ndarray
 
 
 def source_examples(
-    source: ImageFolder,
+    source: ImageSource,
     illuminants,
     names,
     input_kind: str,
@@ -89,7 +90,8 @@ def source_examples(
     (:meth:`ccjax.runs.sources.ImageFolder.prepared`), exactly as ``ccjax evaluate`` prepares it.
 
     Arguments:
-        source: the images (:func:`ccjax.runs.sources.image_folder`).
+        source: the images (:func:`ccjax.runs.sources.image_folder`, or several cameras' folders
+            pooled, :class:`ccjax.runs.pooled.PooledImages`).
         illuminants: ``(N, 3)`` the ground-truth light of each of the source's files.
         names: the name (ground-truth row) of each of the source's files.
         input_kind: the estimator's input kind (``"surfaces"`` or ``"image"``).
