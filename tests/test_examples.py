@@ -128,6 +128,26 @@ def test_ffcc_quick():
     assert all(row[0] >= 0 and row[1] > 0 and row[2] > 0 and 0 < row[3] <= 1 for row in uncertainty), out
 
 
+@pytest.mark.slow  # about 40 s on 2 cores (two cameras' worlds, maps and compilation)
+def test_any_camera_quick():
+    out = run_example("any_camera.py", "--quick")
+    assert "rendered 40 images of 32 x 32" in out, out
+    # Leave-one-camera-out: each folder's rows, then the geometric mean of each method over both.
+    for method in ("GW", "shades-of-grey-p6", "grey-edge-1-6-2 trained"):
+        rows = {folder: table_rows(out, rf"{folder} \(\d+\)\s+{re.escape(method)}\s") for folder in ("canon", "nikon")}
+        mean = table_rows(out, rf"geometric mean \(2\)\s+{re.escape(method)}\s")
+        assert all(len(r) == 1 for r in rows.values()) and len(mean) == 1, out
+        expected = (rows["canon"][0][0] * rows["nikon"][0][0]) ** 0.5
+        assert abs(mean[0][0] - expected) < 2e-3 and 0 < expected < 30, out
+    assert re.search(
+        r"^canon: grey-edge-1-6-2 trained on 40 images of nikon \(Nikon D5300, mapped per-light\)", out, re.M
+    )
+    # The model trained for the Nikon from the Canon's images alone, scored on the Nikon's folder.
+    assert re.search(r"trained on 40 images \(canon 40; per-light maps\)", out), out
+    scored = table_rows(out, r"\S*for-nikon\.eqx\s")
+    assert len(scored) >= 1 and 0 < scored[0][0] < 30, out
+
+
 def test_calibrate_synthetic_quick():
     out = run_example("calibrate_synthetic.py", "--quick")
     assert "RMS relative error" in out and "pseudo-inverse" in out
