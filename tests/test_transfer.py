@@ -15,10 +15,13 @@ from ccjax import Camera, World
 from ccjax.precision import low_precision_products
 from ccjax.spectra import WAVELENGTHS, resample
 from ccjax.transfer import (
+    BLACKBODY_KELVIN,
+    DAYLIGHT_KELVIN,
     GlobalMap,
     PerLightMap,
     fit_camera_map,
     held_back_surfaces,
+    locus_lights,
     map_accuracy,
 )
 
@@ -274,3 +277,19 @@ def test_unknown_cameras_and_bad_shapes_are_named(world, maps):
         map_accuracy(camera_map, SOURCE, NEAR, world, np.arange(10), lights=np.ones((2, WAVELENGTHS.size - 1)))
     with pytest.raises((ValueError, TypeCheckError), match="light_chromaticities"):
         PerLightMap(matrices=jnp.ones((3, 3, 3)), light_chromaticities=jnp.ones((2, 2)), source="a", target="b")
+
+
+def test_a_map_fitted_on_the_locus_maps_smooth_whites_almost_exactly(world, held):
+    # Measured: the whites of 74 blackbodies and daylights between the fitting ones, 600D -> 1Ds III,
+    # max 0.08 degrees (per-light on the world's lights: 0.88, global: 0.29).
+    camera_map = fit_camera_map(SOURCE, NEAR, world=world, surfaces=~held, lights=locus_lights())
+    assert camera_map.matrices.shape == (len(BLACKBODY_KELVIN) + len(DAYLIGHT_KELVIN), 3, 3)
+    source_camera, target_camera = Camera.from_name(SOURCE), Camera.from_name(NEAR)
+    between = np.concatenate([LIGHTS["blackbody 2700 K"][None], locus_lights([3125.0], [6250.0, 13250.0])])
+    whites = between @ np.asarray(source_camera.sensors, np.float64)
+    mapped = jax.vmap(camera_map.map_light)(jnp.asarray(whites, jnp.float32))
+    assert np.all(angles(mapped, between @ np.asarray(target_camera.sensors, np.float64)) < 0.1)
+    with pytest.raises((ValueError, TypeCheckError), match="lights"):
+        fit_camera_map(SOURCE, NEAR, world=world, lights=np.ones((4, 100)))
+    with pytest.raises(ValueError, match="daylight"):
+        locus_lights(daylight=[3000.0])

@@ -9,9 +9,10 @@ training data for another.
 * :mod:`ccjax.transfer._maps`: :class:`AbstractCameraMap` and its final forms, :class:`GlobalMap`
   (one 3x3) and :class:`PerLightMap` (a 3x3 per world light, interpolated in chromaticity);
 * :mod:`ccjax.transfer._fit`: :func:`fit_camera_map`, the least squares (white-preserving per
-  light), :func:`held_back_surfaces`, :func:`paired_responses`;
-* :mod:`ccjax.transfer._accuracy`: :func:`map_accuracy`, angular errors on held-back surfaces and
-  on whites.
+  light), :func:`held_back_surfaces`, :func:`paired_responses`; :func:`locus_lights`, the
+  smooth lights (blackbody and daylight) to fit a per-light map on instead of a world's;
+* :mod:`ccjax.transfer._accuracy`: :func:`map_accuracy` (and :func:`map_errors`, item by item), angular
+  errors on held-back surfaces and on whites.
 
 Example::
 
@@ -25,19 +26,25 @@ Example::
     mapped_truth = camera_map.map_light(truth)  # the same matrix, largest channel 1
 """
 
-from ccjax.transfer._accuracy import AngularStatistics, MapAccuracy, map_accuracy
+from ccjax.transfer._accuracy import AngularStatistics, MapAccuracy, MapErrors, map_accuracy, map_errors
 from ccjax.transfer._fit import SurfaceSelection, fit_camera_map, held_back_surfaces, paired_responses
+from ccjax.transfer._lights import BLACKBODY_KELVIN, DAYLIGHT_KELVIN, locus_lights
 from ccjax.transfer._maps import AbstractCameraMap, GlobalMap, PerLightMap
 
 __all__ = [
+    "BLACKBODY_KELVIN",
+    "DAYLIGHT_KELVIN",
     "AbstractCameraMap",
     "AngularStatistics",
     "GlobalMap",
     "MapAccuracy",
+    "MapErrors",
     "PerLightMap",
     "SurfaceSelection",
     "fit_camera_map",
     "held_back_surfaces",
+    "locus_lights",
     "map_accuracy",
+    "map_errors",
     "paired_responses",
 ]

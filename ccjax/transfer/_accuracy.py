@@ -4,6 +4,7 @@ whites, against the same spectra rendered through the target directly."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -56,7 +57,21 @@ class MapAccuracy:
     negative: float
 
 
-def map_accuracy(
+class MapErrors(NamedTuple):
+    """A camera map's errors item by item (degrees), for tables that split them (by light, say).
+
+    Attributes:
+        surfaces: ``(J, N)`` the error of each of ``N`` surfaces under each of ``J`` lights.
+        whites: ``(J,)`` the error of each light's mapped white.
+        negative: ``(J, N)`` True where the mapped surface has a negative channel.
+    """
+
+    surfaces: np.ndarray
+    whites: np.ndarray
+    negative: np.ndarray
+
+
+def map_errors(
     camera_map: AbstractCameraMap,
     source: Camera | str,
     target: Camera | str,
@@ -64,14 +79,15 @@ def map_accuracy(
     surfaces: SurfaceSelection,
     *,
     lights: Float[ArrayLike, "J 101"] | None = None,
-) -> MapAccuracy:
-    """Angular errors of ``camera_map`` on held-back surfaces and on whites.
+) -> MapErrors:
+    """Angular errors of ``camera_map`` on held-back surfaces and on whites, item by item.
 
     Each surface of ``surfaces`` under each light is rendered through both cameras (the same
     spectra); the source rendering is mapped with the matrix of its light
     (``camera_map.map_rgb(rgb, white)``, the white being the source camera's response to a
-    perfect white under that light, as a ground truth is) and compared with the target's. The
-    whites: ``camera_map.map_light(white)`` against the target's white.
+    perfect white under that light, as a ground truth is) and compared with the target's
+    (:func:`ccjax.metrics.angular_error`). The whites: ``camera_map.map_light(white)`` against
+    the target's white.
 
     Arguments:
         camera_map: the map, fitted for ``source`` -> ``target``.
@@ -83,7 +99,7 @@ def map_accuracy(
             not the training lights the maps are fitted on).
 
     Returns:
-        The statistics (degrees).
+        The errors (degrees).
     """
     source_camera = resolve_camera("source", source)
     target_camera = resolve_camera("target", target)
@@ -100,14 +116,32 @@ def map_accuracy(
     rendered_source, rendered_target = paired_responses(source_camera, target_camera, reflectances[chosen], spectra)
     white_source, white_target = paired_responses(source_camera, target_camera, np.ones((1, spectra.shape[1])), spectra)
     as32 = lambda x: jax.device_put(np.asarray(x, np.float32))
-    whites = as32(white_source[:, 0])
-    errors, white_errors, negative = _errors(
-        camera_map, as32(rendered_source), whites, as32(rendered_target), as32(white_target[:, 0])
+    errors = _errors(
+        camera_map, as32(rendered_source), as32(white_source[:, 0]), as32(rendered_target), as32(white_target[:, 0])
     )
+    return MapErrors(*(np.asarray(x) for x in errors))
+
+
+def map_accuracy(
+    camera_map: AbstractCameraMap,
+    source: Camera | str,
+    target: Camera | str,
+    world: World,
+    surfaces: SurfaceSelection,
+    *,
+    lights: Float[ArrayLike, "J 101"] | None = None,
+) -> MapAccuracy:
+    """Angular-error statistics of ``camera_map`` on held-back surfaces and on whites: the
+    summary of :func:`map_errors` (same arguments).
+
+    Returns:
+        The statistics (degrees) and the share of mapped surfaces with a negative channel.
+    """
+    errors = map_errors(camera_map, source, target, world, surfaces, lights=lights)
     return MapAccuracy(
-        surfaces=AngularStatistics.of(np.asarray(errors)),
-        whites=AngularStatistics.of(np.asarray(white_errors)),
-        negative=float(np.mean(np.asarray(negative))),
+        surfaces=AngularStatistics.of(errors.surfaces),
+        whites=AngularStatistics.of(errors.whites),
+        negative=float(np.mean(errors.negative)),
     )
 
 

@@ -14,12 +14,13 @@ from typing import Literal
 
 import jax
 import numpy as np
-from jaxtyping import ArrayLike, Bool, Int
+from jaxtyping import ArrayLike, Bool, Float, Int
 
 from ccjax._colour import rg_numpy
 from ccjax.camera import Camera, cameras
+from ccjax.spectra import N_WAVELENGTHS
 from ccjax.transfer._maps import AbstractCameraMap, GlobalMap, PerLightMap
-from ccjax.world import World
+from ccjax.world import World, normalise_illuminants
 
 # The condition number of a 3x3 normal matrix above which the surfaces do not span RGB (float64).
 _SINGULAR = 1e12
@@ -157,6 +158,19 @@ def _white_preserving(
     return rows - v[:, :, None] * (residual / scale)[:, None, :]
 
 
+def _fitting_lights(lights: World | ArrayLike, source: Camera) -> np.ndarray:
+    """The fitting lights: a world's training lights, or given spectra validated and scaled for
+    the source camera (white's largest channel 1, as a world scales its lights)."""
+    if isinstance(lights, World):
+        return np.asarray(lights.train_illuminants, np.float64)
+    spectra = np.asarray(lights, np.float64)
+    if spectra.ndim != 2 or spectra.shape[1] != N_WAVELENGTHS or spectra.shape[0] == 0:
+        raise ValueError(f"lights: expected shape (L, {N_WAVELENGTHS}) with L >= 1, got {spectra.shape}")
+    if not np.all(np.isfinite(spectra)) or np.any(spectra < 0):
+        raise ValueError("lights: expected finite, non-negative spectra")
+    return normalise_illuminants(spectra, np.asarray(source.sensors, np.float64))
+
+
 def fit_camera_map(
     source: Camera | str,
     target: Camera | str,
@@ -166,6 +180,7 @@ def fit_camera_map(
     surfaces: SurfaceSelection = None,
     neighbours: int = 6,
     white_preserving: bool = True,
+    lights: Float[ArrayLike, "L 101"] | None = None,
 ) -> AbstractCameraMap:
     """Fit a map from ``source``'s raw RGB to ``target``'s on the spectra of a world.
 
@@ -194,6 +209,9 @@ def fit_camera_map(
             back to measure the map (:func:`held_back_surfaces`).
         neighbours: for ``"per-light"``, how many world lights each scene's map blends.
         white_preserving: for ``"per-light"``, map each light's own white exactly.
+        lights: ``(L, 101)`` light spectra to fit on instead of the world's training lights, e.g.
+            :func:`ccjax.transfer.locus_lights` (each is scaled, as a world's lights are, so the
+            source camera's white has largest channel 1: the weight of each light in a global fit).
 
     Returns:
         The map (a :class:`GlobalMap` or a :class:`PerLightMap`), float32.
@@ -206,7 +224,7 @@ def fit_camera_map(
         world = World.default(camera=source_camera)
     reflectances = np.asarray(world.reflectances, np.float64)
     chosen = surface_indices(surfaces, reflectances.shape[0])
-    lights = np.asarray(world.train_illuminants, np.float64)
+    lights = _fitting_lights(world if lights is None else lights, source_camera)
     rendered_source, rendered_target = paired_responses(source_camera, target_camera, reflectances[chosen], lights)
     gram, cross = _normal_equations(rendered_source, rendered_target)
     names = {"source": source_camera.name, "target": target_camera.name}
@@ -216,7 +234,7 @@ def fit_camera_map(
         return GlobalMap(matrix=as32(rows.T), **names)
     if not 1 <= neighbours < lights.shape[0]:
         raise ValueError(
-            f"neighbours: expected 1 <= neighbours < {lights.shape[0]} (the world's lights), got {neighbours}"
+            f"neighbours: expected 1 <= neighbours < {lights.shape[0]} (the fitting lights), got {neighbours}"
         )
     rows = _solve(gram, cross)
     white_source, white_target = paired_responses(source_camera, target_camera, np.ones((1, lights.shape[1])), lights)
