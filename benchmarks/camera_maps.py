@@ -197,6 +197,11 @@ def main() -> None:
             test_a, test_b = paired_responses(source, target, reflectances[held], lights)
             white_a, white_b = (x[:, 0] for x in paired_responses(source, target, np.ones((1, 101)), lights))
             print(row(pair, "unmapped (stand-in as is)", angles(test_a, test_b), angles(white_a, white_b), warm))
+            # Per-channel gains only (least squares on the fitting data): what is left once the two
+            # measurements' channel scales (their normalisation conventions) are matched.
+            fit_a, fit_b = paired_responses(source, target, reflectances[~held], world.train_illuminants)
+            gains = np.sum(fit_a * fit_b, axis=(0, 1)) / np.sum(fit_a * fit_a, axis=(0, 1))
+            print(row(pair, "channel gains *", angles(test_a * gains, test_b), angles(white_a * gains, white_b), warm))
             for kind in ("global", "per-light"):
                 camera_map = fit_camera_map(source, target, kind=kind, world=world, surfaces=~held)  # type: ignore[arg-type]
                 errors = map_errors(camera_map, source, target, world, held)

@@ -132,7 +132,14 @@ def map_accuracy(
     lights: Float[ArrayLike, "J 101"] | None = None,
 ) -> MapAccuracy:
     """Angular-error statistics of ``camera_map`` on held-back surfaces and on whites: the
-    summary of :func:`map_errors` (same arguments).
+    summary of :func:`map_errors`.
+
+    Arguments:
+        camera_map: the map, fitted for ``source`` -> ``target``.
+        source, target: the cameras (or names), as the map was fitted for.
+        world: the spectra (reflectances; lights unless ``lights`` is given).
+        surfaces: the reflectances to measure on, normally those held back from the fit.
+        lights: ``(J, 101)`` light spectra (default ``world.test_illuminants``).
 
     Returns:
         The statistics (degrees) and the share of mapped surfaces with a negative channel.
