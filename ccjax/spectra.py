@@ -22,6 +22,7 @@ import sys
 from typing import Any, Literal
 
 import numpy as np
+from jaxtyping import Float
 
 Kind = Literal["sensor", "reflectance", "light", "spectrum"]
 """What a spectrum is, which fixes its values outside the measured range: ``"sensor"`` curves are
@@ -201,3 +202,55 @@ def to_colour(
             columns, WAVELENGTHS, labels=list(labels), name=name or kind, **extrapolation
         )
     raise ValueError(f"values: expected shape (101,), (101, C) or (N, 101) on the ccjax grid, got {values.shape}")
+
+
+def blackbody(kelvin: Float[np.ndarray, " T"]) -> Float[np.ndarray, "T 101"]:
+    """Planckian radiators (blackbodies) on :data:`WAVELENGTHS`, colour-science's ``sd_blackbody``
+    (Planck's law with CIE 015:2018's c2 = 1.4388e-2 m K).
+
+    Arguments:
+        kelvin: ``(T,)`` colour temperatures in K, each positive.
+
+    Returns:
+        ``(T, 101)`` spectral radiances (W sr^-1 m^-2 nm^-1), one light per row.
+
+    Raises:
+        ValueError: ``kelvin`` is not a 1-D array of finite positive temperatures.
+    """
+    import colour  # imported here: colour-science is slow to import
+
+    kelvin = _temperatures("kelvin", kelvin, 0.0, np.inf)
+    shape = colour.SpectralShape(WAVELENGTHS[0], WAVELENGTHS[-1], WAVELENGTHS[1] - WAVELENGTHS[0])
+    return np.stack([from_colour(colour.sd_blackbody(t, shape), kind="light") for t in kelvin])
+
+
+def cie_daylight(kelvin: Float[np.ndarray, " T"]) -> Float[np.ndarray, "T 101"]:
+    """CIE daylight illuminants (D series) at correlated colour temperatures on :data:`WAVELENGTHS`
+    (CIE 015:2018 §3.1: chromaticity from the CCT, spectrum from the S0, S1, S2 components).
+
+    Arguments:
+        kelvin: ``(T,)`` correlated colour temperatures in K, each in the D series' 4000-25000 K.
+
+    Returns:
+        ``(T, 101)`` relative spectral power distributions (100 at 560 nm), one light per row.
+
+    Raises:
+        ValueError: ``kelvin`` is not a 1-D array of temperatures in 4000-25000 K.
+    """
+    import colour  # imported here: colour-science is slow to import
+
+    kelvin = _temperatures("kelvin", kelvin, 4000.0, 25000.0)
+    lights = [colour.sd_CIE_illuminant_D_series(colour.temperature.CCT_to_xy_CIE_D(t)) for t in kelvin]
+    return np.stack([from_colour(sd, kind="light") for sd in lights])
+
+
+def _temperatures(name: str, kelvin: Any, low: float, high: float) -> np.ndarray:
+    """``kelvin`` as a 1-D float array, each in ``(low, high]`` K (``low`` excluded only when 0)."""
+    kelvin = np.asarray(kelvin, dtype=np.float64)
+    if kelvin.ndim != 1 or kelvin.size == 0 or not np.all(np.isfinite(kelvin)):
+        raise ValueError(f"{name}: expected a 1-D array of finite temperatures in K, got shape {kelvin.shape}")
+    outside = (kelvin <= 0) if low == 0 else (kelvin < low)
+    if np.any(outside | (kelvin > high)):
+        span = "positive" if low == 0 else f"in {low:.0f}-{high:.0f} K"
+        raise ValueError(f"{name}: every temperature must be {span}, got {kelvin.min()}-{kelvin.max()} K")
+    return kelvin

@@ -22,7 +22,7 @@ from jaxtyping import Array, ArrayLike, Float
 from ccjax import data
 from ccjax._colour import rg_numpy
 from ccjax.camera import Camera
-from ccjax.spectra import WAVELENGTHS, SpectraLike, as_spectra, resample
+from ccjax.spectra import WAVELENGTHS, SpectraLike, as_spectra, blackbody, cie_daylight, resample
 
 TRAIN_CELL = 0.02
 TEST_CELL = 0.01
@@ -292,12 +292,8 @@ def _default_sources() -> tuple[np.ndarray, int, np.ndarray]:
     cie = colour.SDS_ILLUMINANTS
     priority = ["A", "D50", "D55", "D65", "D75", "FL2", "FL7", "FL11"]
     spectra = [grid(cie[name]) for name in priority]
-    for cct in np.arange(4000.0, 25000.0 + 1, 500.0):
-        xy = colour.temperature.CCT_to_xy_CIE_D(cct)
-        spectra.append(grid(colour.sd_CIE_illuminant_D_series(xy)))
-    shape = colour.SpectralShape(380, 780, 4)
-    for kelvin in np.arange(2000.0, 10000.0 + 1, 250.0):
-        spectra.append(grid(colour.sd_blackbody(kelvin, shape)))
+    spectra += list(cie_daylight(np.arange(4000.0, 25000.0 + 1, 500.0)))
+    spectra += list(blackbody(np.arange(2000.0, 10000.0 + 1, 250.0)))
     series = [f"FL{i}" for i in range(1, 13)] + [f"FL3.{i}" for i in range(1, 16)]
     series += [name for name in cie if name.startswith(("LED-", "HP"))]
     spectra += [grid(cie[name]) for name in series if name not in priority]

@@ -13,7 +13,7 @@ import pytest
 from colour.algebra import LinearInterpolator
 
 from ccjax.camera import Camera
-from ccjax.spectra import WAVELENGTHS, as_spectra, from_colour, to_colour
+from ccjax.spectra import WAVELENGTHS, as_spectra, blackbody, cie_daylight, from_colour, to_colour
 from ccjax.world import World
 
 GRID = colour.SpectralShape(380, 780, 4)
@@ -142,3 +142,26 @@ def test_world_from_colour_distributions():
     assert ours.reflectances.shape == (len(patches), 101)
     for field in ("reflectances", "train_illuminants", "test_illuminants", "canonical"):
         np.testing.assert_array_equal(getattr(ours, field), getattr(arrays, field))
+
+
+def test_blackbody_is_plancks_law():
+    """Planck's law written here: c1 = 2 pi h c^2 over pi sr (radiance), CIE 015:2018's c2, per nm."""
+    kelvin = np.array([1500.0, 2856.0, 6500.0, 20000.0])
+    metres = WAVELENGTHS[None] * 1e-9
+    want = 1e-9 * 3.741771e-16 / np.pi * metres**-5 / np.expm1(1.4388e-2 / (metres * kelvin[:, None]))
+    np.testing.assert_allclose(blackbody(kelvin), want, rtol=1e-6)
+    for bad in (np.array([0.0, 5000.0]), np.array([-1.0]), np.array([np.nan])):
+        with pytest.raises(ValueError, match="kelvin"):
+            blackbody(bad)
+
+
+def test_cie_daylight_at_d65s_temperature_is_the_d65_table():
+    """The D series at D65's correlated colour temperature (6504 K) against CIE's tabulated D65
+    (the table was computed from the same components with rounded coefficients: within 0.5 %)."""
+    d65 = colour.SDS_ILLUMINANTS["D65"]
+    table = np.interp(WAVELENGTHS, d65.wavelengths, d65.values)
+    np.testing.assert_allclose(cie_daylight(np.array([6504.0]))[0], table, rtol=5e-3)
+    assert cie_daylight(np.array([4000.0, 25000.0])).shape == (2, WAVELENGTHS.size)
+    for bad in (np.array([3000.0]), np.array([26000.0])):
+        with pytest.raises(ValueError, match="4000-25000 K"):
+            cie_daylight(bad)

@@ -54,9 +54,10 @@ def add_cameras(sub) -> None:
         "cameras",
         help="list the cameras ccjax can build; check ground truth against a camera's curves",
         description="List every camera ccjax can build and where its curves come from. With --check GT.csv: "
-        "compare the ground-truth lights with the camera's whites under the default world's training and test lights "
-        "(median over images of the (r,g) distance to the nearest white) and say whether the images can have "
-        "been taken with that camera's curves (exit status 1 when not).",
+        "compare the ground-truth lights with the camera's Planckian/daylight locus (its responses to blackbodies "
+        "of 1500-20000 K and CIE daylights of 4000-25000 K): the lower quartile over images of the (r,g) distance "
+        "to the locus, above 0.008 when the images were probably taken with another camera's curves (exit "
+        "status 1).",
     )
     world_arguments(p)
     p.add_argument(
@@ -68,7 +69,7 @@ def add_cameras(sub) -> None:
     p.add_argument(
         "--plot",
         default=None,
-        help="with --check: write a PNG of the ground truth and the camera's whites in (r,g)",
+        help="with --check: write a PNG of the ground truth and the camera's locus in (r,g)",
     )
     overwrite_argument(p, "--plot file")
     p.set_defaults(func=run_cameras)

@@ -35,8 +35,8 @@ def add_evaluate(sub) -> None:
         "confidence intervals of mean and median), each method's input, seconds (compilation apart) and the "
         "images where it fell back or relaxed, with the reasons. Ground truth: CSV with header image,r,g,b (file "
         "name in DIR; r,g,b = camera RGB of the light, any scale). World-based methods need --camera; the ground "
-        "truth is checked against that camera's whites (see `ccjax cameras --check`). Unreadable images are "
-        "reported and skipped (exit status 2).",
+        "truth is checked against that camera's Planckian/daylight locus (see `ccjax cameras --check`). "
+        "Unreadable images are reported and skipped (exit status 2).",
     )
     p.add_argument(
         "directories",

@@ -14,10 +14,19 @@ A protocol is a value (:mod:`ccjax.evaluation.protocols`), read and training opt
 * :class:`LeaveOneCameraOut`, :class:`TrainOn` -- trained on other cameras' folders mapped into
   the scored folder's camera (:mod:`ccjax.evaluation.cross_camera`);
 * :class:`ImageResults` -- per-image estimates and the field's statistics; :func:`fold_worlds`;
-  :func:`curve_check` -- the ground truth against a camera's curves.
+  :func:`curve_check` -- the ground truth against a camera's Planckian/daylight locus
+  (:func:`locus_whites`).
 """
 
-from ccjax.evaluation.camera_check import CURVE_THRESHOLD, CurveCheck, curve_check
+from ccjax.evaluation.camera_check import (
+    CURVE_QUANTILE,
+    CURVE_THRESHOLD,
+    CurveCheck,
+    curve_check,
+    locus_distance,
+    locus_whites,
+    polyline_distance,
+)
 from ccjax.evaluation.cross_camera import (
     CAMERA_MAPS,
     LeaveOneCameraOut,
@@ -44,6 +53,7 @@ from ccjax.evaluation.sets import (
 
 __all__ = [
     "CAMERA_MAPS",
+    "CURVE_QUANTILE",
     "CURVE_THRESHOLD",
     "PROTOCOL_STATISTICS",
     "AbstractProtocol",
@@ -69,6 +79,9 @@ __all__ = [
     "fold_worlds",
     "geometric_mean",
     "geometric_means",
+    "locus_distance",
+    "locus_whites",
+    "polyline_distance",
     "pooled_source",
     "read_folder",
     "run_images",

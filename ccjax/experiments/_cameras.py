@@ -2,8 +2,8 @@
 sharpness study.
 
 The computations behind ``ccjax cameras`` (and ``--check``: do a data set's ground-truth lights
-fit a camera's curves?), ``ccjax world --world barnard1999`` (the camera check)
-and ``ccjax sharpen --rank-cameras``; the command line only formats what these return.
+lie along the Planckian/daylight locus of a camera's curves?), ``ccjax world --world barnard1999``
+(the camera check) and ``ccjax sharpen --rank-cameras``; the command line only formats what these return.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import jax
 import numpy as np
 
 from ccjax.evaluation.camera_check import CURVE_THRESHOLD as CURVE_THRESHOLD
-from ccjax.evaluation.camera_check import CurveCheck, world_whites
+from ccjax.evaluation.camera_check import CurveCheck, locus_whites
 from ccjax.evaluation.camera_check import curve_check as curve_check
 from ccjax.experiments.reports import Column, Report
 from ccjax.experiments.sweeps import is_registered
@@ -45,7 +45,7 @@ def camera_listing(data_dir=None) -> Report:
 
 
 def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
-    """The ground truth and the camera's whites (training and test lights) in (r,g), with the verdict.
+    """The ground truth and the camera's Planckian/daylight locus in (r,g), with the verdict.
 
     Arguments:
         check: the :func:`curve_check` result.
@@ -64,17 +64,22 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     from ccjax._colour import rg_numpy
     from ccjax.io.files import write_figure
 
-    whites = rg_numpy(np.asarray(world_whites(world), np.float64))
+    bodies, days = (rg_numpy(whites) for whites in locus_whites(world.camera))
     points = rg_numpy(np.asarray(truth, np.float64))
     fig, ax = plt.subplots(figsize=(6, 5))
-    ax.scatter(whites[:, 0], whites[:, 1], s=14, marker="s", label=f"{check.camera}: whites of the world's lights")
+    ax.plot(bodies[:, 0], bodies[:, 1], lw=1.5, label=f"{check.camera}: blackbodies")
+    ax.plot(days[:, 0], days[:, 1], lw=1.5, ls="--", label=f"{check.camera}: CIE daylights")
     ax.scatter(points[:, 0], points[:, 1], s=6, alpha=0.6, c="red", label="ground truth")
     ax.set_xlabel("r")
     ax.set_ylabel("g")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     verdict = "passes" if check.passed else "fails"
-    ax.set_title(f"median distance {check.distance:.4f} (threshold {check.threshold:.3f}): {verdict}", fontsize=9)
+    ax.set_title(
+        f"{100 * check.quantile:g} % quantile of the distance to the locus {check.distance:.4f} "
+        f"(threshold {check.threshold:.3f}): {verdict}",
+        fontsize=9,
+    )
     fig.tight_layout()
     write_figure(fig, path, dpi=110)  # atomic for paths; file objects pass through (PNG)
     plt.close(fig)
