@@ -16,9 +16,7 @@ from ccjax.runs import store
 from ccjax.world import World
 
 
-def estimate(
-    method, x, mask=None, *, world: World | None = None, saturation: float | None = CLIP_FRACTION
-) -> Estimate:
+def estimate(method, x, mask=None, *, world: World | None = None, saturation: float | None = CLIP_FRACTION) -> Estimate:
     """Estimate the light of one scene: a surface list, an image, or a batch of images.
 
     What ``x`` is goes by its shape, the same for every family:

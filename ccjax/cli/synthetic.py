@@ -55,7 +55,9 @@ def add_compare(sub) -> None:
         "--methods",
         type=label_list,
         default=None,
-        help="comma-separated labels (default: the built-in comparison set)",
+        help="comma-separated labels of surface estimators (default: the built-in comparison set; `ccjax methods` "
+        "lists each label's input). Scenes here are surface lists, with no pixels or neighbours: image "
+        "estimators (grey-edge-<n>-<p>-<sigma>, FFCC) are scored on images with `ccjax evaluate DIR`",
     )
     p.add_argument(
         "--surfaces",
@@ -104,6 +106,8 @@ def run_compare(args) -> int:
     imported = time.perf_counter()
     check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
     check_plot(args.plot)
+    if args.methods:
+        check_surface_methods(args.methods)
     writer = start_processes()
     # Compiled programs go to <cache>/xla, so a second run skips compilation (as its fits are read
     # from <cache>/fits by the sweep).
@@ -149,6 +153,31 @@ def run_compare(args) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def check_surface_methods(labels: list[str]) -> None:
+    """Refuse image estimators in ``compare --methods`` before anything is fitted, naming them and
+    the command that scores them.
+
+    Raises:
+        ValueError: a label of an image estimator (an unknown label is left to the fit's message).
+    """
+    from ccjax.estimators import registry
+
+    images = []
+    for label in labels:
+        try:
+            entry, _ = registry.lookup(label)
+        except ValueError:
+            continue
+        if entry.input_kind == "image":
+            images.append(label)
+    if images:
+        raise ValueError(
+            f"--methods: {', '.join(images)}: image estimators; compare's scenes are surface lists (no pixels, no "
+            "neighbours): score them on images with `ccjax evaluate DIR --methods ...` (a folder of linear images "
+            "with ground truth, e.g. written by ccjax.io.write_dataset)"
+        )
 
 
 def _sweep(args, world, methods):
