@@ -12,8 +12,12 @@ def add_estimate(sub) -> None:
     p = sub.add_parser(
         "estimate",
         help="estimate the light of linear images",
-        description="Estimate the illuminant of each image (files or folders); print its camera RGB (unit scale: "
-        "saturation = 1) and (r,g).",
+        description="Estimate the illuminant of each image (files or folders); print the camera RGB of white under "
+        "it, scaled so that its largest channel is 1 (the scale of ccjax's lights; an image's exposure leaves the "
+        "light's brightness unknown), its (r,g) and its status: estimated; relaxed (the method found no answer "
+        "meeting all its constraints and gives the nearest one, e.g. a gamut method with no feasible map); fell "
+        "back (no answer: the model's fallback light); no usable pixels (every pixel clipped, dark or masked: "
+        "the fallback light). A warning line on stderr counts the images that were not estimated.",
     )
     p.add_argument(
         "images",
@@ -32,7 +36,8 @@ def add_estimate(sub) -> None:
     p.add_argument(
         "--json",
         action="store_true",
-        help="print a JSON list with one object per image: path, illuminant [R,G,B], rg, ok",
+        help="print a JSON list with one object per image: path, illuminant [R,G,B] (largest channel 1), rg, ok, "
+        "status (estimated, relaxed, fell back, no usable pixels)",
     )
     p.set_defaults(func=run_estimate)
 
@@ -78,23 +83,70 @@ def run_estimate(args) -> int:
         dark=image_options.dark_fraction(args),
         progress=not args.no_progress,
     )
-    records = [{k: r[k] for k in ("path", "illuminant", "rg", "ok")} for r in run.records()]
+    records = [
+        {
+            "path": r["path"],
+            "illuminant": unit_light(r["illuminant"]),
+            "rg": r["rg"],
+            "ok": r["ok"],
+            "status": STATUS_WORDS[r["status"]],
+        }
+        for r in run.records()
+    ]
     if args.json:
         print(json.dumps(records, indent=1))
     else:
         names = [printable(r["path"]) for r in records]
         width = max([40, *(len(name) + 2 for name in names)])
-        print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  ok")
+        print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  status")
         for name, r in zip(names, records, strict=True):
-            # " " before every number: an estimate of 100 or more still stands apart.
             print(
                 f"{name:<{width}}"
                 + "".join(" " + f"{v:.5f}".rjust(9) for v in r["illuminant"])
                 + "".join(" " + f"{v:.4f}".rjust(7) for v in r["rg"])
-                + f"  {'yes' if r['ok'] else 'no'}"
+                + f"  {r['status']}"
             )
+    warn_not_estimated(records)
     raise_failures(list(run.failures.values()), len(source))
     return 0
+
+
+STATUS_WORDS = {"estimated": "estimated", "relaxed": "relaxed", "empty_set": "fell back", "no_data": "no usable pixels"}
+"""How ``ccjax estimate`` names each :class:`ccjax.Status` (its ``name.lower()``) in tables and JSON."""
+
+
+def unit_light(rgb: list[float]) -> list[float]:
+    """``rgb`` scaled so that its largest channel is 1 (the scale of ccjax's lights): a relaxed
+    gamut solution's raw magnitude (hundreds) says nothing about the light's brightness, and a
+    photograph's exposure leaves that brightness unknown for every method.
+
+    Arguments:
+        rgb: an estimate's camera RGB, non-negative.
+
+    Returns:
+        The scaled RGB (as given when every channel is 0).
+    """
+    top = max(rgb)
+    return [value / top for value in rgb] if top > 0 else list(rgb)
+
+
+def warn_not_estimated(records: list[dict]) -> None:
+    """One warning line on stderr when any image's light was not estimated, counting each status.
+
+    Arguments:
+        records: ``ccjax estimate``'s records (with ``status`` in :data:`STATUS_WORDS`' words).
+    """
+    import collections
+    import sys
+
+    counts = collections.Counter(r["status"] for r in records if r["status"] != "estimated")
+    if counts:
+        listed = ", ".join(f"{word} {count}" for word, count in sorted(counts.items()))
+        print(
+            f"ccjax estimate: warning: {sum(counts.values())} of {len(records)} images not estimated ({listed}); "
+            "see the status column (`ccjax estimate --help` says what each means)",
+            file=sys.stderr,
+        )
 
 
 def printable(text: str) -> str:
