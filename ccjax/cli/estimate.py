@@ -24,13 +24,7 @@ def add_estimate(sub) -> None:
         nargs="+",
         help="16-bit PNG/TIFF files, raw files (raw extra), or folders of them",
     )
-    p.add_argument("--method", default=None, help="estimator label (see `ccjax methods`); or --model")
-    p.add_argument(
-        "--model",
-        default=None,
-        help="a trained model file (`ccjax train --out`, ccjax.runs.store.save_trained) instead of --method: the "
-        "method and camera it was trained for come from its record",
-    )
+    image_options.model_arguments(p, "estimate")
     world_arguments(p)
     image_options.image_arguments(p)
     p.add_argument(
@@ -47,8 +41,8 @@ def estimate_model(args):
     images are checked), or the trained ``--model`` file (:func:`ccjax.load_model`).
 
     Raises:
-        ValueError: neither or both given; a model file that cannot be read; a world-based
-            ``--method`` without ``--camera``.
+        ValueError: neither or both given; a model file that cannot be read or whose record names
+            another camera than ``--camera``; a world-based ``--method`` without ``--camera``.
     """
     if (args.method is None) == (args.model is None):
         raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
@@ -56,17 +50,9 @@ def estimate_model(args):
         image_options.check_labels([args.method], args)
         image_options.require_camera([args.method], args)
         return args.method, None
-    from pathlib import Path
-
-    from ccjax.runs.store import load_model
-
-    if not Path(args.model).is_file():
-        raise ValueError(f"--model: no such model file: {args.model}")
-    if args.world != "default" or args.camera is not None:
-        raise ValueError("--model: the model's world comes from its file; leave out --world and --camera")
     image_options.check_labels([], args)
-    model = load_model(args.model)
-    return f"{Path(args.model).name}", model
+    name, model, _ = image_options.trained_model(args)
+    return name, model
 
 
 def run_estimate(args) -> int:
