@@ -174,10 +174,9 @@ def run_correct(args) -> int:
     import numpy as np
 
     from ccjax import runs
-    from ccjax.runs.sources import raise_failures
-
     from ccjax.cli.estimate import STATUS_WORDS, unit_light
     from ccjax.estimators.base import Status
+    from ccjax.runs.sources import raise_failures
 
     if (args.method is None) == (args.model is None):
         raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
