@@ -32,7 +32,13 @@ from ccjax.training._pretraining import (
     render_examples,
     render_images,
 )
-from ccjax.training._procedures import LOG_CHROMA_SCHEDULE, default_schedule, train_model
+from ccjax.training._procedures import (
+    LOG_CHROMA_SCHEDULE,
+    default_schedule,
+    procedure_record,
+    train_model,
+    uses_schedule,
+)
 
 __all__ = [
     "LOG_CHROMA_SCHEDULE",
@@ -55,6 +61,7 @@ __all__ = [
     "planckian_lights",
     "planckian_locus",
     "predict",
+    "procedure_record",
     "pretrain",
     "read_examples",
     "read_folds",
@@ -63,5 +70,6 @@ __all__ = [
     "source_examples",
     "subsample",
     "train_model",
+    "uses_schedule",
     "train_on_images",
 ]
