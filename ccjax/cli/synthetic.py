@@ -14,6 +14,7 @@ from ccjax.cli.common import (
     label_list,
     overwrite_argument,
     start_processes,
+    table_stream,
     world_arguments,
     write_outputs,
     write_plot,
@@ -83,8 +84,12 @@ def add_compare(sub) -> None:
         help="discard surfaces with a channel above this level, thesis units (white = 255)",
     )
     p.add_argument("--plot", default=None, help="write a PNG of error versus number of surfaces")
-    p.add_argument("--json", default=None, help="write the tidy table as JSON ('-' for stdout)")
-    p.add_argument("--csv", default=None, help="write the tidy table as CSV ('-' for stdout)")
+    p.add_argument(
+        "--json", default=None, help="write the tidy table as JSON ('-': stdout, the tables for people then on stderr)"
+    )
+    p.add_argument(
+        "--csv", default=None, help="write the tidy table as CSV ('-': stdout, the tables for people then on stderr)"
+    )
     p.add_argument(
         "--recompute",
         action="store_true",
@@ -106,6 +111,7 @@ def run_compare(args) -> int:
     imported = time.perf_counter()
     check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
     check_plot(args.plot)
+    out = table_stream(args)  # stderr when --json - or --csv - puts the data on stdout
     if args.methods:
         check_surface_methods(args.methods)
     writer = start_processes()
@@ -125,19 +131,23 @@ def run_compare(args) -> int:
     if not writer:  # under jax.distributed every process holds the pooled result; one reports it
         return 0
     n_cells = len(result.methods) * len(result.surfaces)
-    print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes")
-    print(f"fits: {counts.get('cached', 0)} from cache, {counts.get('fitted', 0)} fitted ({_cache.cache_directory()})")
+    print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes", file=out)
+    print(
+        f"fits: {counts.get('cached', 0)} from cache, {counts.get('fitted', 0)} fitted ({_cache.cache_directory()})",
+        file=out,
+    )
     print(
         f"results: {result.cells_from_cache} of {n_cells} (method, surfaces) cells from cache, "
-        f"{n_cells - result.cells_from_cache} computed"
+        f"{n_cells - result.cells_from_cache} computed",
+        file=out,
     )
-    print(result.table("rg"))
-    print()
-    print(result.table("angular"))
-    print()
+    print(result.table("rg"), file=out)
+    print(file=out)
+    print(result.table("angular"), file=out)
+    print(file=out)
     # Estimate.status per surface count: a rising relaxed share is how a gamut method's failure
     # to find a feasible light shows (thesis §4.3.2), before its error does.
-    print(result.status_table())
+    print(result.status_table(), file=out)
     if args.plot:
         title = f"{world.name}: {args.scenes} scenes per point"
         write_plot(args.plot, lambda file: experiments.plot(result, file, title=title), overwrite=args.overwrite)
