@@ -189,3 +189,16 @@ def test_every_python_block_of_a_page_runs_as_pasted(page, tmp_path):
     skipped = [line for line in run.stdout.splitlines() if re.fullmatch(r"block \d+ needs .*", line)]
     if skipped:
         pytest.skip(f"{page}: " + "; ".join(skipped))
+
+
+def test_nothing_cites_a_file_the_repository_does_not_have():
+    """Docstrings, examples, tests and pages cite only files the repository has: no ``DESIGN.md``
+    (a design note kept outside it)."""
+    assert not (ROOT / "DESIGN.md").exists()
+    files = [*ROOT.glob("ccjax/**/*.py"), *ROOT.glob("examples/*.py"), *ROOT.glob("tests/*.py"), *DOCS.glob("**/*.md")]
+    files += [ROOT / "README.md", ROOT / "CONTRIBUTING.md"]
+    word = "DESIGN" + ".md"  # spelled apart, so this file does not cite it either
+    citing = [
+        str(path.relative_to(ROOT)) for path in files if word in path.read_text() or "DESIGN §" in path.read_text()
+    ]
+    assert citing == []
