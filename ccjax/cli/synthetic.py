@@ -124,7 +124,7 @@ def run_compare(args) -> int:
         # Fitted ahead (the sweep then finds them in the store's memory) so that the fits' time is
         # apart from the sweep's compiling and running.
         counts: dict[str, int] = {}
-        experiments.resolve_methods(world, methods, counts)
+        experiments.resolve_methods(world, methods, counts, progress=not args.no_progress)
         fitted = time.perf_counter()
         result = _sweep(args, world, methods)
     swept = time.perf_counter()
