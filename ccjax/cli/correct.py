@@ -184,7 +184,7 @@ def run_correct(args) -> int:
     paths, outputs, previews = correct_outputs(args)
     if args.model is None:
         image_options.require_camera([args.method], args)
-        method, world = args.method, image_options.image_world(args)
+        method, world = str(args.method), image_options.image_world(args)
     else:
         from ccjax.runs import store
 

@@ -4,8 +4,12 @@ input preparation, pixel rules, masks, file levels, progress, the world and the 
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from ccjax.cli.common import check_camera_name, check_camera_option
+
+if TYPE_CHECKING:
+    from ccjax.estimators.base import AbstractEstimator
 
 OPTION_NAMES = {
     "folds": "--folds",
@@ -202,7 +206,7 @@ def model_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
     )
 
 
-def trained_model(args):
+def trained_model(args) -> tuple[str, AbstractEstimator, str | None]:
     """``(name, model, camera)`` of ``--model``: the model file's name, the model
     (:func:`ccjax.load_model`) and the camera its record names, or ``--camera`` when the record
     names none (a model that used no camera's curves), or None.

@@ -211,8 +211,8 @@ def warn_few_images(method: str, count: int, folds: int | None) -> None:
     if method in FROM_PHOTOGRAPHS and per_fold < FEW_IMAGES:
         where = f"{per_fold} per fold" if per_fold != count else f"{count}"
         print(
-            f"ccjax train: warning: {method} trains on {where} images, fewer than {FEW_IMAGES}: a model learned from so "
-            "few photographs is unreliable (FFCC on 4 images per fold scored 23 degrees); see `ccjax train --help`",
+            f"ccjax train: warning: {method} trains on {where} images, fewer than {FEW_IMAGES}: a model learned from "
+            "so few photographs is unreliable (FFCC on 4 images per fold scored 23 degrees); see `ccjax train --help`",
             file=sys.stderr,
         )
 

@@ -61,8 +61,8 @@ __all__ = [
     "planckian_lights",
     "planckian_locus",
     "predict",
-    "procedure_record",
     "pretrain",
+    "procedure_record",
     "read_examples",
     "read_folds",
     "render_examples",
@@ -70,6 +70,6 @@ __all__ = [
     "source_examples",
     "subsample",
     "train_model",
-    "uses_schedule",
     "train_on_images",
+    "uses_schedule",
 ]
