@@ -3,23 +3,37 @@
 from __future__ import annotations
 
 import functools
+import math
+
+import numpy as np
 
 from ccjax._cache import enable_compilation_cache
 from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, validate_input
+from ccjax.estimators.base import validate_image
+from ccjax.io.reading import CLIP_FRACTION, LinearImage
+from ccjax.preprocessing import estimate_image, estimate_pixels, resolve, usable_pixels
 from ccjax.runs import store
 from ccjax.world import World
 
 
-def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
-    """Estimate the illuminant of one scene (or a batch of images), with a label or a fitted model.
+def estimate(method, x, mask=None, *, world: World | None = None, saturation: float | None = CLIP_FRACTION) -> Estimate:
+    """Estimate the light of one scene: a surface list, an image, or a batch of images.
 
-    The model's input kind decides what ``x`` is: surface estimators take one surface list
-    ``(P, 3)``; image estimators (grey edge) an image ``(H, W, 3)`` or a batch ``(B, H, W, 3)``.
-    Anything else raises a ``ValueError`` saying what to pass. A 3-D array given to a surface
-    estimator is refused, since an image ``(H, W, 3)`` would pass for a batch of ``H`` surface
-    lists: images reach surface estimators through the image pipeline
-    (:func:`ccjax.preprocessing.estimate_image`), batches of surface lists through
-    :func:`ccjax.estimate_batch`.
+    What ``x`` is goes by its shape, the same for every family:
+
+    * ``(P, 3)``: one surface list, for surface estimators (grey world, gamut mapping, ...),
+      used as given (an image estimator refuses it: a list has no neighbours).
+    * ``(H, W, 3)``: one image. Its usable pixels are those the command line uses
+      (:func:`ccjax.preprocessing.usable_pixels`): no channel at or above ``saturation``, no
+      zero channel, inside ``mask``; each model then gets its default input
+      (:func:`ccjax.preprocessing.prepare`: the pixels for the statistics methods and grey edge,
+      the 5x5 block averages for the world-based methods). A clipped pixel holds the sensor's
+      limit, not the light's colour (Barnard 1999 §2.7), so it is dropped by default.
+    * ``(B, H, W, 3)``: a batch of images, by the same rule, for image estimators and models
+      whose default input is the pixels (a block-averaged list has a length that depends on the
+      image: give those one image at a time).
+
+    A batch of surface lists ``(B, P, 3)`` goes to :func:`ccjax.estimate_batch`.
 
     A label is fitted through :mod:`ccjax.runs.store` (in memory and on disk, so a later process
     reads the fit), and the compiled programs go to JAX's persistent compilation cache in the ccjax
@@ -30,8 +44,11 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
         method: a registry label (``"GW"``, ``"shades-of-grey-p6"``, ``"grey-edge-1-6-2"``, ...) or a
             fitted estimator.
         x: linear camera RGB, non-negative and finite.
-        mask: optional booleans ``x.shape[:-1]``, True where a surface or pixel is valid.
+        mask: optional booleans ``x.shape[:-1]``, True where a surface or pixel may be used.
         world: the world a label is fitted to (default :meth:`World.default`).
+        saturation: images only: a pixel with any channel at or above this value is clipped and
+            not used, in ``x``'s own units (default 0.98, the command line's clip level for images
+            on the unit scale, saturation = 1); None uses every pixel. Surface lists ignore it.
 
     Returns:
         An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like an image
@@ -45,16 +62,54 @@ def estimate(method, x, mask=None, *, world: World | None = None) -> Estimate:
         model = method
     else:
         raise ValueError(f"method: expected a label or a fitted estimator, got {type(method).__name__}")
-    x, mask = validate_input(model, x, mask)
-    return _run(model, x, mask)
+    if np.ndim(x) not in (3, 4):
+        x, mask = validate_input(model, x, mask)
+        return _run(model, x, mask)
+    _check_saturation(saturation, x)
+    images, mask = validate_image(x, mask)
+    clipped = np.zeros(images.shape[:-1], bool) if saturation is None else np.any(images >= saturation, axis=-1)
+    if images.ndim == 3:
+        return estimate_image(model, LinearImage(rgb=images, clipped=clipped), mask=mask)
+    if model.input_kind == "surfaces" and not resolve(model).pixels:
+        raise ValueError(
+            f"image: {type(model).__name__} takes {resolve(model).name} surface lists of an image, whose length "
+            f"depends on the image; give one image (H, W, 3) at a time, not a batch of shape {images.shape}"
+        )
+    # The pixel rule is per pixel: the batch's rows as one tall image give every image's mask at once.
+    batch, height, width, _ = images.shape
+    usable = usable_pixels(
+        images.reshape(batch * height, width, 3),
+        clipped.reshape(batch * height, width),
+        0.0,
+        mask=mask.reshape(batch * height, width),
+    ).reshape(batch, height, width)
+    return _run(model, images, usable)
+
+
+def _check_saturation(saturation: float | None, x) -> None:
+    if saturation is None:
+        return
+    if isinstance(saturation, bool) or not isinstance(saturation, (int, float)) or not math.isfinite(saturation):
+        raise ValueError(f"saturation: expected a positive number or None, got {saturation!r}")
+    if saturation <= 0:
+        raise ValueError(f"saturation: expected a positive number or None, got {saturation!r}")
+    dtype = getattr(x, "dtype", None)
+    if dtype is not None and np.dtype(dtype).kind in "ui" and saturation <= 1:
+        raise ValueError(
+            f"saturation: {saturation!r} is on the unit scale but the image holds integers ({np.dtype(dtype)}); "
+            "divide it by its saturation level (e.g. 65535) or give saturation in its units"
+        )
 
 
 @functools.cache
 def _compiled_runner():
     import equinox as eqx
+    import jax
 
     @eqx.filter_jit
     def run(model, x, mask):
+        if x.ndim == 4 and model.input_kind == "surfaces":
+            return jax.vmap(lambda image, usable: estimate_pixels(model, image, usable))(x, mask)
         return estimate_batch(model, x, mask) if x.ndim == 4 else model(x, mask)
 
     return run

@@ -1,5 +1,5 @@
 """Shapes for the backend: how many scenes a vmapped block and a chunk of a run hold, chosen by
-the backend and its device memory (DESIGN §3: a GPU wants batches of tens of thousands of scenes,
+the backend and its device memory (docs/gpu.md: a GPU wants batches of tens of thousands of scenes,
 a CPU cache-sized blocks; the same code and the same numbers on both).
 
 * :func:`block_scenes`: scenes per vmapped block of

@@ -8,6 +8,7 @@ works on linear responses and never needs it.
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Callable
 
@@ -134,11 +135,11 @@ class Camera(eqx.Module):
             jiang = data.jiang_cameras(data_dir)
             if name in jiang:
                 return cls.from_array(jiang[name], name=name)
-        known = ", ".join(sorted(embedded)[:6])
+        close = difflib.get_close_matches(name, list(embedded), n=3, cutoff=0.6)
+        hint = f" Did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
         raise ValueError(
-            f"camera: unknown name {name!r}. Embedded cameras include {known}, ...; "
-            "'Sony DXC-930' and 'Jiang: <model>' need the external data; "
-            "the `ccjax cameras` command (or ccjax.cameras()) lists all."
+            f"camera: unknown name {name!r}.{hint} 'Sony DXC-930' and 'Jiang: <model>' need the external data; "
+            f"the `ccjax cameras` command (or ccjax.cameras()) lists all {len(embedded)} embedded cameras."
         )
 
     def response(self, signal: Float[ArrayLike, "... 101"]) -> Float[Array, "... 3"]:

@@ -176,7 +176,7 @@ def mapping_loss(
 
     Masked pixels are zeroed before the error is computed, so their content never reaches the loss
     or its gradient; a scene without valid pixels contributes 0. (Needed for sharpening through GW,
-    whose chromaticity does not depend on the transform, DESIGN.md §5.)
+    whose chromaticity does not depend on the transform.)
 
     Arguments:
         estimate: ``(..., 3)`` estimated illuminants.

@@ -17,8 +17,9 @@ On photographs the same commands apply to your own folder (see docs/photographs.
 your photographs").
 
 Run: ``python examples/ffcc_quick.py [--images 600] [--size 64] [--out DIR]``; ``--quick`` makes
-120 images of 32 x 32 (under a minute; FFCC pads a training set to a multiple of 128 images, so
-the folds' training sets and the whole set share one compiled solver).
+120 images of 32 x 32 (about 2.2 CPU-minutes: 7.6 minutes measured on 2 CPU cores shared with
+other work, about 130 s on a quiet machine; FFCC pads a training set to a multiple of 128 images,
+so the folds' training sets and the whole set share one compiled solver).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A synthetic sweep sharded over a device mesh (DESIGN.md §3): the scene axis of every chunk is split
+"""A synthetic sweep sharded over a device mesh (docs/training.md): the scene axis of every chunk is split
 across the devices with ``jax.sharding``; the per-scene errors must agree with the one-device run to
 1e-6 relative, and the example prints scenes/s per device count.
 

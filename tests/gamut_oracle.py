@@ -1,6 +1,6 @@
 """Exact per-scene oracle for 3-D gamut mapping, written from the spec as plain NumPy/SciPy.
 
-DESIGN.md §4 and spec ch08-12 §1.7-1.8 / §9.5: the feasible set of diagonal maps is the polytope
+Barnard 1999 §4.5.3 (and the gamut chapters' spec §1.7-1.8 / §9.5): the feasible set of diagonal maps is the polytope
 ``{d : (n_k * p_j) . d <= c_k for all observed p_j and canonical facets k}``; SciPy's
 ``HalfspaceIntersection`` gives its vertices, its exact centroid is a sum over tetrahedra (AVE),
 the maximum of ``sum(log d)`` over it is a convex program (MV), and averages over the non-convex

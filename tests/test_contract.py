@@ -209,27 +209,13 @@ def test_estimate_dispatches_on_the_input_kind(image_batch, surface_batch, world
     assert estimate_batch(registry.fit("GW", world), rgb, mask).illuminant.shape == (3, 3)
 
 
-@pytest.mark.parametrize("shape", [(30, 40, 3), (2, 8, 3)])
-def test_a_3d_array_to_a_surface_estimator_is_refused_not_estimated_per_row(shape):
-    """An (H, W, 3) image has the shape of H surface lists: ``ccjax.estimate`` refuses it (naming
-    ``rgb`` and the shape) instead of returning one light per image row."""
-    x = np.full(shape, 0.5, np.float32)
-    pattern = (
-        rf"rgb: GreyWorld is a surface estimator and takes one surface list .*got shape \({shape[0]}, {shape[1]}, 3\)"
-    )
-    with pytest.raises(ValueError, match=pattern):
-        ccjax.estimate("GW", x)
-    with pytest.raises(ValueError, match=r"rgb: .*estimate_batch"):
-        ccjax.estimate("shades-of-grey-p6", x, np.ones(shape[:2], bool))
-
-
 def test_wrong_input_kind_is_a_clear_error(image_batch, surface_batch, world):
     rgb, _ = surface_batch
     images, _ = image_batch
     with pytest.raises(ValueError, match=r"image: GreyEdge is an image estimator .*\(H, W, 3\).*\(8, 3\)"):
         ccjax.estimate("grey-edge-1-6-2", rgb[0])
-    with pytest.raises(ValueError, match=r"rgb: GreyWorld is a surface estimator .*image pipeline"):
-        ccjax.estimate("GW", images)
+    # An image to a surface estimator is one scene (tests/test_estimate_images.py), not H surface lists.
+    assert ccjax.estimate("GW", images[0]).illuminant.shape == (3,)
     with pytest.raises(ValueError, match=r"mask: expected shape \(12, 12\)"):
         ccjax.estimate("grey-edge-1-6-2", images[0], np.ones((8,), bool))
     grey_edge = registry.fit("grey-edge-1-6-2", world)

@@ -74,7 +74,7 @@ def test_a_clipped_white_blob_stays_neutral_after_ccjax_correct(small_world_comm
     assert status == 0
     # The estimate is printed with five decimals, not float32 noise (0.030889999121427536).
     printed = capsys.readouterr().out
-    assert re.search(r": illuminant \[\d\.\d{5}, \d\.\d{5}, \d\.\d{5}\] \(ok: True\) -> ", printed), printed
+    assert re.search(r": light \[\d\.\d{5}, \d\.\d{5}, \d\.\d{5}\] \(estimated\) -> ", printed), printed
     out, preview = io.read_png(folder / "out.png"), io.read_png(folder / "out_preview.png")
     canonical = np.asarray(store.world().canonical_white, np.float64)
     want = np.round(canonical / canonical.max() * 65535)

@@ -1,4 +1,4 @@
-"""Scale-out (DESIGN.md §3): two CPU processes under ``jax.distributed`` (gloo collectives) and one
+"""Scale-out (docs/training.md): two CPU processes under ``jax.distributed`` (gloo collectives) and one
 process with four forced host devices give the single-device results.
 
 Four interpreters run ``tests/distributed_worker.py`` at once: the reference (one device, the

@@ -219,7 +219,7 @@ def test_ecrule_ica_scwia_match_quadrature_on_a_few_scenes(default_world, models
 
 
 def test_ecrule_ave_is_centroid_with_convex_cone_constraint(default_world, models, reference, run_all):
-    """ECRULE-AVE: the exact centroid of F_S ∩ cone(w_C / e_j) (DESIGN.md §4)."""
+    """ECRULE-AVE: the exact centroid of F_S ∩ cone(w_C / e_j) (Barnard 1999 §4.5.3)."""
     scenes = sample(jax.random.key(23), default_world, 6, 8)
     out = run_all(models[("ECRULE", None)], scenes.rgb, scenes.mask)
     A, b = reference[None]
@@ -424,7 +424,7 @@ def test_soft_agrees_with_hard(default_world, models):
 
 
 # ---------------------------------------------------------------------------------------------
-# the full oracle comparisons (DESIGN.md §4 acceptance): 200 scenes per size
+# the full oracle comparisons: 200 scenes per size
 
 
 @pytest.mark.slow

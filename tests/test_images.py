@@ -173,7 +173,7 @@ def test_cli_estimate_json_and_correct(tmp_path, world, cache, monkeypatch, caps
     assert cli.main(["estimate", str(tmp_path / "in"), "--method", "GW", "--json", "--no-progress"]) == 0
     records = json.loads(capsys.readouterr().out)
     assert [r["path"].endswith(f"image-000{i}.png") for i, r in enumerate(records)] == [True, True]
-    assert all(set(r) == {"path", "illuminant", "rg", "ok"} and r["ok"] for r in records)
+    assert all(set(r) == {"path", "illuminant", "rg", "ok", "status"} and r["ok"] for r in records)
     assert cli.main(["correct", str(tmp_path / "in"), str(tmp_path / "out"), "--method", "GW", "--no-progress"]) == 0
     corrected = io.read_image(tmp_path / "out" / "image-0000.png")
     assert corrected.rgb.shape == (64, 64, 3)

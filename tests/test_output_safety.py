@@ -114,7 +114,8 @@ def test_folder_outputs_never_collide_case_insensitively(setup, capsys):
     assert len(lines) == 3
     # Each input's own output: correcting it alone gives the same pixels.
     for line in lines:
-        source, written = line.split(": ", 1)[0], line.rsplit("-> ", 1)[1].split(", ")
+        source = line.split(": ", 1)[0]
+        written = [part.split(" (", 1)[0] for part in line.rsplit("-> ", 1)[1].split(", ")]  # "out (what it is)"
         single = setup / "single" / f"x{os.path.splitext(written[0])[1]}"
         single.parent.mkdir(exist_ok=True)
         argv = ["correct", source, str(single), "--method", "GW", "--no-progress", "--overwrite"]

@@ -1,4 +1,4 @@
-"""The precision policy (DESIGN §3): every product that carries physics or statistics is
+"""The precision policy (ccjax/precision.py): every product that carries physics or statistics is
 ``precision=HIGHEST``, checked on CPU at the jaxpr level (a GPU would compute a product of default
 precision in TF32: measured on an H200, world responses off by 2e-4 relative, one sharpening-map
 entry by 30 %).

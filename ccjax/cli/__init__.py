@@ -66,10 +66,13 @@ def build_parser() -> argparse.ArgumentParser:
     """
     import argparse
 
+    from ccjax._version import __version__
+
     parser = argparse.ArgumentParser(
         prog="ccjax",
         description="JAX colour constancy: estimate and correct the colour of the light.",
     )
+    parser.add_argument("--version", action="version", version=f"ccjax {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for group in groups():
         for add in group.COMMANDS:

@@ -38,7 +38,7 @@ def run_world(args) -> int:
     for name, size in world.sizes().items():
         print(f"  {name:<22}{size}")
     print(f"  camera                {world.camera.name}")
-    print(f"  canonical white RGB   {np.round(np.asarray(world.canonical_white), 4).tolist()}")
+    print(f"  canonical white RGB   [{', '.join(f'{v:.4f}' for v in np.asarray(world.canonical_white))}]")
     if args.world == "barnard1999":
         check = experiments.sfu321_check(world, args.data_dir)
         print("  perfect white under each lab light vs mean SFU-321 ground truth (degrees):")

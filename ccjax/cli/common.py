@@ -239,6 +239,30 @@ def write_plot(path: str | os.PathLike, draw, *, overwrite: bool) -> None:
     print(f"wrote {path}", file=sys.stderr)
 
 
+def table_stream(args):
+    """Where a command prints its tables for people: standard output, or standard error when
+    ``--json -`` or ``--csv -`` puts the data there, so that standard output holds only the data
+    (``json.load`` of it works).
+
+    Arguments:
+        args: the parsed arguments (``json``, ``csv``; either may be absent).
+
+    Returns:
+        ``sys.stdout`` or ``sys.stderr``.
+
+    Raises:
+        ValueError: both ``--json -`` and ``--csv -`` (one standard output cannot hold both).
+    """
+    import sys
+
+    from ccjax.io.outputs import STANDARD_OUTPUT
+
+    to_stdout = [f"--{name}" for name in ("json", "csv") if getattr(args, name, None) == STANDARD_OUTPUT]
+    if len(to_stdout) > 1:
+        raise ValueError("--json, --csv: give '-' (standard output) to one of them; write the other to a file")
+    return sys.stderr if to_stdout else sys.stdout
+
+
 def write_outputs(args, report) -> None:
     """Write ``report`` as JSON / CSV where ``--json`` / ``--csv`` name a file."""
     if args.json:

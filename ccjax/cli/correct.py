@@ -6,21 +6,26 @@ from ccjax.cli import image_options
 from ccjax.cli.common import check_outputs, overwrite_argument, world_arguments
 
 OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
+JPEG_SUFFIXES = (".jpg", ".jpeg")
 
 
 def add_correct(sub) -> None:
     p = sub.add_parser(
         "correct",
         help="correct linear images to the canonical light",
-        description="Estimate each image's light, map it to the canonical light with a diagonal map and write the "
-        "corrected linear 16-bit image (or sRGB, --srgb 8|16) and an 8-bit sRGB preview; pixels with a clipped "
-        "channel come out white. IN and OUT are files, or folders (OUT "
-        "is created). Inputs are never replaced; existing outputs need --overwrite; every file is written "
-        "to a temporary name and renamed into place.",
+        description="Estimate each image's light (--method, or a trained --model), map it to the canonical light "
+        "with a diagonal map and write the corrected image and an 8-bit sRGB preview; pixels with a clipped "
+        "channel come out white. By default the corrected image is linear 16-bit camera RGB under the canonical "
+        "light (the camera's view of daylight white, which is not grey: in an image viewer it looks green and "
+        "dark), for further processing; --srgb 8 or 16 writes it for viewing (--srgb 8: .png or .jpg). IN and "
+        "OUT are files, or folders (OUT and the folder of a single OUT are created). Inputs are never replaced; "
+        "existing outputs need --overwrite; every file is written to a temporary name and renamed into place.",
     )
     p.add_argument("input", help="a linear image or a folder of them")
-    p.add_argument("output", help="output .png/.tif/.tiff file, or a folder when INPUT is a folder")
-    p.add_argument("--method", required=True, help="estimator label (see `ccjax methods`)")
+    p.add_argument(
+        "output", help="output .png/.tif/.tiff file (.jpg/.jpeg with --srgb 8), or a folder when INPUT is a folder"
+    )
+    image_options.model_arguments(p, "correct")
     p.add_argument(
         "--preview",
         default=None,
@@ -98,10 +103,14 @@ def correct_outputs(args):
         previews = [Path(args.preview) if args.preview else target.with_name(f"{target.stem}_preview.png")]
         if target.is_dir():
             raise ValueError(f"output: {target} is a folder; give a .png, .tif or .tiff file name")
-        if target.suffix.lower() not in OUTPUT_SUFFIXES:
-            raise ValueError(f"output: {target} must end in .png, .tif or .tiff")
-        if not target.parent.is_dir():
-            raise ValueError(f"output: folder {target.parent} does not exist")
+        if target.suffix.lower() in JPEG_SUFFIXES and args.srgb != 8:
+            raise ValueError(
+                f"output: {target} is a JPEG, 8-bit sRGB for viewing; give --srgb 8, or a .png/.tif/.tiff for the "
+                "linear 16-bit (or --srgb 16) image"
+            )
+        if target.suffix.lower() not in OUTPUT_SUFFIXES + JPEG_SUFFIXES:
+            raise ValueError(f"output: {target} must end in .png, .tif or .tiff (or .jpg/.jpeg with --srgb 8)")
+        check_output_folder(target.parent, "output", written=target)  # created when missing, as OUT folders are
         if previews[0].suffix.lower() != ".png":
             raise ValueError(f"--preview: {previews[0]} must end in .png")
     written = [("output", output) for output in outputs] + [("--preview", preview) for preview in previews]
@@ -165,29 +174,43 @@ def run_correct(args) -> int:
     import numpy as np
 
     from ccjax import runs
+    from ccjax.cli.estimate import STATUS_WORDS, unit_light
+    from ccjax.estimators.base import Status
     from ccjax.runs.sources import raise_failures
 
-    image_options.check_labels([args.method], args)
+    if (args.method is None) == (args.model is None):
+        raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
+    image_options.check_labels([] if args.method is None else [args.method], args)
     paths, outputs, previews = correct_outputs(args)
-    image_options.require_camera([args.method], args)
+    if args.model is None:
+        image_options.require_camera([args.method], args)
+        method, world = str(args.method), image_options.image_world(args)
+    else:
+        from ccjax.runs import store
+
+        # The model's camera gives the canonical light and the preview's colours.
+        _, method, camera = image_options.trained_model(args)
+        world = store.world("default", camera, seed=args.seed)
     sharpening = read_sharpening(args.sharpening)
     source = image_options.image_source(paths, args)
+    kind = "linear 16-bit camera RGB under the canonical light" if args.srgb is None else f"{args.srgb}-bit sRGB"
 
     def report(index, estimate, output, preview) -> None:
         from tqdm.auto import tqdm
 
-        # Five decimals as `ccjax estimate` prints them (float32 has no more to give), written
+        # The light as `ccjax estimate` prints it (five decimals, largest channel 1), written
         # above the progress bar rather than into it.
-        rgb = ", ".join(f"{v:.5f}" for v in np.asarray(estimate.illuminant, np.float64))
-        line = f"(ok: {bool(estimate.ok)}) -> {output}, {preview}"
-        tqdm.write(f"{source.paths[index]}: illuminant [{rgb}] {line}")
+        rgb = ", ".join(f"{v:.5f}" for v in unit_light([float(v) for v in np.asarray(estimate.illuminant)]))
+        status = STATUS_WORDS[Status(int(estimate.status)).name.lower()]
+        line = f"({status}) -> {output} ({kind}), {preview} (sRGB preview)"
+        tqdm.write(f"{source.paths[index]}: light [{rgb}] {line}")
 
     run = runs.correct_folder(
         source,
-        args.method,
+        method,
         outputs,
         previews=previews,
-        world=image_options.image_world(args),
+        world=world,
         sharpening=sharpening,
         preprocessing=args.preprocessing,
         dark=image_options.dark_fraction(args),

@@ -12,27 +12,26 @@ def add_estimate(sub) -> None:
     p = sub.add_parser(
         "estimate",
         help="estimate the light of linear images",
-        description="Estimate the illuminant of each image (files or folders); print its camera RGB (unit scale: "
-        "saturation = 1) and (r,g).",
+        description="Estimate the illuminant of each image (files or folders); print the camera RGB of white under "
+        "it, scaled so that its largest channel is 1 (the scale of ccjax's lights; an image's exposure leaves the "
+        "light's brightness unknown), its (r,g) and its status: estimated; relaxed (the method found no answer "
+        "meeting all its constraints and gives the nearest one, e.g. a gamut method with no feasible map); fell "
+        "back (no answer: the model's fallback light); no usable pixels (every pixel clipped, dark or masked: "
+        "the fallback light). A warning line on stderr counts the images that were not estimated.",
     )
     p.add_argument(
         "images",
         nargs="+",
         help="16-bit PNG/TIFF files, raw files (raw extra), or folders of them",
     )
-    p.add_argument("--method", default=None, help="estimator label (see `ccjax methods`); or --model")
-    p.add_argument(
-        "--model",
-        default=None,
-        help="a trained model file (`ccjax train --out`, ccjax.runs.store.save_trained) instead of --method: the "
-        "method and camera it was trained for come from its record",
-    )
+    image_options.model_arguments(p, "estimate")
     world_arguments(p)
     image_options.image_arguments(p)
     p.add_argument(
         "--json",
         action="store_true",
-        help="print a JSON list with one object per image: path, illuminant [R,G,B], rg, ok",
+        help="print a JSON list with one object per image: path, illuminant [R,G,B] (largest channel 1), rg, ok, "
+        "status (estimated, relaxed, fell back, no usable pixels)",
     )
     p.set_defaults(func=run_estimate)
 
@@ -42,8 +41,8 @@ def estimate_model(args):
     images are checked), or the trained ``--model`` file (:func:`ccjax.load_model`).
 
     Raises:
-        ValueError: neither or both given; a model file that cannot be read; a world-based
-            ``--method`` without ``--camera``.
+        ValueError: neither or both given; a model file that cannot be read or whose record names
+            another camera than ``--camera``; a world-based ``--method`` without ``--camera``.
     """
     if (args.method is None) == (args.model is None):
         raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
@@ -51,17 +50,9 @@ def estimate_model(args):
         image_options.check_labels([args.method], args)
         image_options.require_camera([args.method], args)
         return args.method, None
-    from pathlib import Path
-
-    from ccjax.runs.store import load_model
-
-    if not Path(args.model).is_file():
-        raise ValueError(f"--model: no such model file: {args.model}")
-    if args.world != "default" or args.camera is not None:
-        raise ValueError("--model: the model's world comes from its file; leave out --world and --camera")
     image_options.check_labels([], args)
-    model = load_model(args.model)
-    return f"{Path(args.model).name}", model
+    name, model, _ = image_options.trained_model(args)
+    return name, model
 
 
 def run_estimate(args) -> int:
@@ -78,23 +69,70 @@ def run_estimate(args) -> int:
         dark=image_options.dark_fraction(args),
         progress=not args.no_progress,
     )
-    records = [{k: r[k] for k in ("path", "illuminant", "rg", "ok")} for r in run.records()]
+    records = [
+        {
+            "path": r["path"],
+            "illuminant": unit_light(r["illuminant"]),
+            "rg": r["rg"],
+            "ok": r["ok"],
+            "status": STATUS_WORDS[r["status"]],
+        }
+        for r in run.records()
+    ]
     if args.json:
         print(json.dumps(records, indent=1))
     else:
         names = [printable(r["path"]) for r in records]
         width = max([40, *(len(name) + 2 for name in names)])
-        print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  ok")
+        print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  status")
         for name, r in zip(names, records, strict=True):
-            # " " before every number: an estimate of 100 or more still stands apart.
             print(
                 f"{name:<{width}}"
                 + "".join(" " + f"{v:.5f}".rjust(9) for v in r["illuminant"])
                 + "".join(" " + f"{v:.4f}".rjust(7) for v in r["rg"])
-                + f"  {'yes' if r['ok'] else 'no'}"
+                + f"  {r['status']}"
             )
+    warn_not_estimated(records)
     raise_failures(list(run.failures.values()), len(source))
     return 0
+
+
+STATUS_WORDS = {"estimated": "estimated", "relaxed": "relaxed", "empty_set": "fell back", "no_data": "no usable pixels"}
+"""How ``ccjax estimate`` names each :class:`ccjax.Status` (its ``name.lower()``) in tables and JSON."""
+
+
+def unit_light(rgb: list[float]) -> list[float]:
+    """``rgb`` scaled so that its largest channel is 1 (the scale of ccjax's lights): a relaxed
+    gamut solution's raw magnitude (hundreds) says nothing about the light's brightness, and a
+    photograph's exposure leaves that brightness unknown for every method.
+
+    Arguments:
+        rgb: an estimate's camera RGB, non-negative.
+
+    Returns:
+        The scaled RGB (as given when every channel is 0).
+    """
+    top = max(rgb)
+    return [value / top for value in rgb] if top > 0 else list(rgb)
+
+
+def warn_not_estimated(records: list[dict]) -> None:
+    """One warning line on stderr when any image's light was not estimated, counting each status.
+
+    Arguments:
+        records: ``ccjax estimate``'s records (with ``status`` in :data:`STATUS_WORDS`' words).
+    """
+    import collections
+    import sys
+
+    counts = collections.Counter(r["status"] for r in records if r["status"] != "estimated")
+    if counts:
+        listed = ", ".join(f"{word} {count}" for word, count in sorted(counts.items()))
+        print(
+            f"ccjax estimate: warning: {sum(counts.values())} of {len(records)} images not estimated ({listed}); "
+            "see the status column (`ccjax estimate --help` says what each means)",
+            file=sys.stderr,
+        )
 
 
 def printable(text: str) -> str:

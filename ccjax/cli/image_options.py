@@ -4,8 +4,12 @@ input preparation, pixel rules, masks, file levels, progress, the world and the 
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from ccjax.cli.common import check_camera_name, check_camera_option
+
+if TYPE_CHECKING:
+    from ccjax.estimators.base import AbstractEstimator
 
 OPTION_NAMES = {
     "folds": "--folds",
@@ -187,6 +191,56 @@ def require_camera(labels, args) -> None:
             "the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the ground truth) or "
             "use --world barnard1999"
         )
+
+
+def model_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
+    """``--method`` and ``--model`` of ``estimate`` and ``correct`` (exactly one is given).
+
+    Arguments:
+        parser: the command's parser.
+        verb: what the command does with the light, for the help (``"estimate"``, ``"correct"``).
+    """
+    parser.add_argument("--method", default=None, help="estimator label (see `ccjax methods`); or --model")
+    parser.add_argument(
+        "--model",
+        default=None,
+        help=f"a trained model file (`ccjax train --out`, ccjax.runs.store.save_trained) to {verb} with, instead of "
+        "--method: the method and the camera it was trained for come from its record (a --camera given must be "
+        "that camera)",
+    )
+
+
+def trained_model(args) -> tuple[str, AbstractEstimator, str | None]:
+    """``(name, model, camera)`` of ``--model``: the model file's name, the model
+    (:func:`ccjax.load_model`) and the camera its record names, or ``--camera`` when the record
+    names none (a model that used no camera's curves), or None.
+
+    Arguments:
+        args: the parsed arguments (``--model``, ``--world``, ``--camera``).
+
+    Returns:
+        The name, the model and the camera.
+
+    Raises:
+        ValueError: no such file, ``--world`` given, an unknown ``--camera`` or one that is not the
+            camera of the model's record (naming both), or a model that cannot be read.
+    """
+    from pathlib import Path
+
+    from ccjax.runs import store
+
+    if not Path(args.model).is_file():
+        raise ValueError(f"--model: no such model file: {args.model}")
+    if args.world != "default":
+        raise ValueError("--model: the model's world comes from its record; leave out --world")
+    check_camera_name(args)
+    camera = store.trained_record(args.model).get("camera")
+    if args.camera is not None and camera is not None and args.camera != camera:
+        raise ValueError(
+            f"--camera: {args.camera!r} is not the camera of the model {args.model} ({camera!r}, from its record); "
+            "a model trained for one camera gives wrong lights for another: leave out --camera or train for it"
+        )
+    return Path(args.model).name, store.load_model(args.model), camera if camera is not None else args.camera
 
 
 def image_source(paths_or_folders, args):

@@ -142,9 +142,15 @@ def run_sharpen(args) -> int:
         for row in np.asarray(transform):
             print("  " + " ".join(f"{v:9.5f}" for v in row))
         if args.method == "new":
+            # Each tried lambda_P: the negative-lobe fraction, negative calibration responses and
+            # iterations it gave, with the digits that tell them apart (not float64 noise).
+            tried = ", ".join(
+                f"{lp:g}: {fraction:.4g} / {negative:d} / {iterations:d}"
+                for lp, fraction, negative, iterations in info["lambda_p_search"]
+            )
             print(
-                f"lambda_P = {info['lambda_p']:g} (search: {info['lambda_p_search']}); "
-                f"{info['iterations']} iterations, converged {info['converged']}"
+                f"lambda_P = {info['lambda_p']:g} (tried lambda_P: negative-lobe fraction / negative responses / "
+                f"iterations: {tried}); {info['iterations']} iterations, converged {info['converged']}"
             )
             print(f"objective {info['objective_initial']:.5f} (identity) -> {info['objective_final']:.5f}")
         print(

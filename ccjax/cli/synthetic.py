@@ -14,6 +14,7 @@ from ccjax.cli.common import (
     label_list,
     overwrite_argument,
     start_processes,
+    table_stream,
     world_arguments,
     write_outputs,
     write_plot,
@@ -55,7 +56,9 @@ def add_compare(sub) -> None:
         "--methods",
         type=label_list,
         default=None,
-        help="comma-separated labels (default: the built-in comparison set)",
+        help="comma-separated labels of surface estimators (default: the built-in comparison set; `ccjax methods` "
+        "lists each label's input). Scenes here are surface lists, with no pixels or neighbours: image "
+        "estimators (grey-edge-<n>-<p>-<sigma>, FFCC) are scored on images with `ccjax evaluate DIR`",
     )
     p.add_argument(
         "--surfaces",
@@ -81,8 +84,12 @@ def add_compare(sub) -> None:
         help="discard surfaces with a channel above this level, thesis units (white = 255)",
     )
     p.add_argument("--plot", default=None, help="write a PNG of error versus number of surfaces")
-    p.add_argument("--json", default=None, help="write the tidy table as JSON ('-' for stdout)")
-    p.add_argument("--csv", default=None, help="write the tidy table as CSV ('-' for stdout)")
+    p.add_argument(
+        "--json", default=None, help="write the tidy table as JSON ('-': stdout, the tables for people then on stderr)"
+    )
+    p.add_argument(
+        "--csv", default=None, help="write the tidy table as CSV ('-': stdout, the tables for people then on stderr)"
+    )
     p.add_argument(
         "--recompute",
         action="store_true",
@@ -104,6 +111,9 @@ def run_compare(args) -> int:
     imported = time.perf_counter()
     check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
     check_plot(args.plot)
+    out = table_stream(args)  # stderr when --json - or --csv - puts the data on stdout
+    if args.methods:
+        check_surface_methods(args.methods)
     writer = start_processes()
     # Compiled programs go to <cache>/xla, so a second run skips compilation (as its fits are read
     # from <cache>/fits by the sweep).
@@ -114,26 +124,30 @@ def run_compare(args) -> int:
         # Fitted ahead (the sweep then finds them in the store's memory) so that the fits' time is
         # apart from the sweep's compiling and running.
         counts: dict[str, int] = {}
-        experiments.resolve_methods(world, methods, counts)
+        experiments.resolve_methods(world, methods, counts, progress=not args.no_progress)
         fitted = time.perf_counter()
         result = _sweep(args, world, methods)
     swept = time.perf_counter()
     if not writer:  # under jax.distributed every process holds the pooled result; one reports it
         return 0
     n_cells = len(result.methods) * len(result.surfaces)
-    print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes")
-    print(f"fits: {counts.get('cached', 0)} from cache, {counts.get('fitted', 0)} fitted ({_cache.cache_directory()})")
+    print(f"world: {world.name}; {args.scenes} scenes per surface count; RMS over scenes", file=out)
+    print(
+        f"fits: {counts.get('cached', 0)} from cache, {counts.get('fitted', 0)} fitted ({_cache.cache_directory()})",
+        file=out,
+    )
     print(
         f"results: {result.cells_from_cache} of {n_cells} (method, surfaces) cells from cache, "
-        f"{n_cells - result.cells_from_cache} computed"
+        f"{n_cells - result.cells_from_cache} computed",
+        file=out,
     )
-    print(result.table("rg"))
-    print()
-    print(result.table("angular"))
-    print()
+    print(result.table("rg"), file=out)
+    print(file=out)
+    print(result.table("angular"), file=out)
+    print(file=out)
     # Estimate.status per surface count: a rising relaxed share is how a gamut method's failure
     # to find a feasible light shows (thesis §4.3.2), before its error does.
-    print(result.status_table())
+    print(result.status_table(), file=out)
     if args.plot:
         title = f"{world.name}: {args.scenes} scenes per point"
         write_plot(args.plot, lambda file: experiments.plot(result, file, title=title), overwrite=args.overwrite)
@@ -149,6 +163,31 @@ def run_compare(args) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def check_surface_methods(labels: list[str]) -> None:
+    """Refuse image estimators in ``compare --methods`` before anything is fitted, naming them and
+    the command that scores them.
+
+    Raises:
+        ValueError: a label of an image estimator (an unknown label is left to the fit's message).
+    """
+    from ccjax.estimators import registry
+
+    images = []
+    for label in labels:
+        try:
+            entry, _ = registry.lookup(label)
+        except ValueError:
+            continue
+        if entry.input_kind == "image":
+            images.append(label)
+    if images:
+        raise ValueError(
+            f"--methods: {', '.join(images)}: image estimators; compare's scenes are surface lists (no pixels, no "
+            "neighbours): score them on images with `ccjax evaluate DIR --methods ...` (a folder of linear images "
+            "with ground truth, e.g. written by ccjax.io.write_dataset)"
+        )
 
 
 def _sweep(args, world, methods):

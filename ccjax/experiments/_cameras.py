@@ -33,14 +33,21 @@ def camera_listing(data_dir=None) -> Report:
     """Every camera ccjax can build and where its curves come from.
 
     Arguments:
-        data_dir: external data directory (external cameras are listed when it is found).
+        data_dir: external data directory (its cameras are listed by name when it is found, as
+            needing it otherwise).
 
     Returns:
         A :class:`Report` with rows ``{"camera", "source"}``.
     """
     from ccjax.camera import cameras
 
-    rows = [{"camera": name, "source": source} for name, source in cameras(data_dir).items()]
+    listing = cameras(data_dir)
+    rows = [{"camera": name, "source": source} for name, source in listing.items()]
+    if "Sony DXC-930" not in listing:
+        # Named all the same: a reader of the listing learns they exist and what they need.
+        missing = "needs the external data, not found (--data-dir or $CCJAX_DATA)"
+        rows.append({"camera": "Sony DXC-930", "source": f"external (sfu_barnard): {missing}"})
+        rows.append({"camera": "Jiang: <model>", "source": f"external (Jiang et al. 2013): {missing}"})
     return Report(rows, [Column("camera"), Column("source", gap=2)])
 
 

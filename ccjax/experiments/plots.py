@@ -49,6 +49,28 @@ def _finish(plt, fig, path, title: str) -> None:
         plt.close(fig)
 
 
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+"""Markers of the methods' lines, in turn: seven, a number prime to the ten colours of
+matplotlib's cycle, so two methods that share a marker never share a colour (within 70 methods)."""
+
+
+def method_styles(count: int) -> list[dict]:
+    """Line styles that tell ``count`` methods apart: the colour cycle's colours with a marker
+    each (:data:`MARKERS`), dashed from the eleventh method on. Colours alone were not enough:
+    the cycle's red and pink (the default comparison's DB-GW and ND-ECRULE-MV) look alike.
+
+    Arguments:
+        count: the number of methods.
+
+    Returns:
+        ``count`` keyword dicts for ``Axes.plot`` (``color``, ``marker``, ``linestyle``).
+    """
+    return [
+        {"color": f"C{index % 10}", "marker": MARKERS[index % len(MARKERS)], "linestyle": "-" if index < 10 else "--"}
+        for index in range(count)
+    ]
+
+
 def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"), summary: str = "rms", title=None):
     """Error versus number of surfaces (log2 x axis, as the figures of Barnard 1999 ch. 4), one panel per statistic.
 
@@ -61,8 +83,9 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
     """
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(statistics), figsize=(5.5 * len(statistics), 4.2), squeeze=False)
+    styles = method_styles(len(result.methods))
     for ax, statistic in zip(axes[0], statistics, strict=False):
-        for method in result.methods:
+        for method, style in zip(result.methods, styles, strict=True):
             points = [
                 (n, result.value(method, n, statistic, summary))
                 for n in result.surfaces
@@ -70,7 +93,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
             ]
             if points:
                 xs, ys = zip(*points, strict=True)
-                ax.plot(np.log2(xs), ys, marker="o", label=method)
+                ax.plot(np.log2(xs), ys, label=method, **style)
         ax.set_xticks(np.log2(result.surfaces))
         ax.set_xticklabels([str(n) for n in result.surfaces])
         ax.set_xlabel("number of surfaces (log2 scale)")

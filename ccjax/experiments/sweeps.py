@@ -109,9 +109,11 @@ def resolve_methods(
     """
     from tqdm.auto import tqdm
 
-    resolved = []
-    bar = tqdm(methods, desc="fit", unit="method", disable=not progress, leave=False)
-    for method in bar:
+    resolved, methods = [], list(methods)
+    # Counted by hand: a bar that wraps the iterable shows its count only when it redraws on its
+    # own schedule, so naming the method (a redraw) showed 0 of N until the fits were done.
+    bar = tqdm(total=len(methods), desc="fit", unit="method", disable=not progress, leave=False)
+    for method in methods:
         if isinstance(method, str):
             bar.set_postfix_str(method)
             model, hit = store.fit_with_source(method, world)
@@ -126,6 +128,8 @@ def resolve_methods(
         else:
             raise ValueError(f"methods: expected labels, Estimators or (label, Estimator) pairs, got {method!r}")
         require_surface_estimator(*resolved[-1])
+        bar.update(1)
+    bar.close()
     if not resolved:
         raise ValueError("methods: empty")
     return resolved

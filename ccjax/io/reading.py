@@ -4,8 +4,9 @@
 scale, **1.0 is the saturation level** (default: the file format's maximum, 65535 for 16-bit; for
 raw files LibRaw's white level), so a corrected image written back with
 :func:`ccjax.io.write_linear` keeps the file's codes. This is the image counterpart of the
-library's scale (DESIGN.md §2: the brightest channel of a perfect white under the light is 1.0
-for synthetic data); an image's white is wherever the exposure put it, below 1.0.
+library's scale (docs/concepts.md, "Spectra and the scale": the brightest channel of a perfect
+white under the light is 1.0 for synthetic data); an image's white is wherever the exposure put
+it, below 1.0.
 
 Clipped pixels (the thesis discards them, §2.7) are those with any channel at or above the
 *clip level*: by default :data:`CLIP_FRACTION` = 0.98 of the saturation level (the file

@@ -72,25 +72,39 @@ def write_linear(path: str | os.PathLike, rgb: ArrayLike, *, overwrite: bool = T
     write_codes(path, quantise(rgb), overwrite=overwrite)
 
 
+JPEG_QUALITY = 95
+"""Quality of the JPEG files ccjax writes (libjpeg's 0-100 scale): visually lossless for photographs."""
+
+
 def write_codes(path: str | os.PathLike, codes: np.ndarray, *, overwrite: bool = True) -> None:
-    """Write file codes ``(H, W, 3)`` (``uint8`` or ``uint16``) as a PNG or TIFF (by suffix),
-    atomically (:func:`write_file`; a TIFF is streamed into its temporary file).
+    """Write file codes ``(H, W, 3)`` (``uint8`` or ``uint16``) as a PNG or TIFF, or ``uint8`` as a
+    JPEG (quality :data:`JPEG_QUALITY`), by suffix, atomically (:func:`write_file`; a TIFF is
+    streamed into its temporary file).
 
     Arguments:
-        path: ``.png``, ``.tif`` or ``.tiff`` file.
-        codes: ``(H, W, 3)`` ``uint8`` or ``uint16``.
+        path: ``.png``, ``.tif``, ``.tiff``, ``.jpg`` or ``.jpeg`` file.
+        codes: ``(H, W, 3)`` ``uint8`` or ``uint16`` (JPEG: ``uint8``).
         overwrite: replace a file already at ``path``.
 
     Returns:
         None.
 
     Raises:
-        ValueError: the suffix is not ``.png``, ``.tif`` or ``.tiff``.
+        ValueError: another suffix, or 16-bit codes for a JPEG (8 bits per channel).
     """
     path = Path(path)
-    if path.suffix.lower() not in (".png", ".tif", ".tiff"):
-        raise ValueError(f"output: {path} must end in .png, .tif or .tiff")
-    if path.suffix.lower() == ".png":
+    suffix = path.suffix.lower()
+    if suffix not in (".png", ".tif", ".tiff", ".jpg", ".jpeg"):
+        raise ValueError(f"output: {path} must end in .png, .tif, .tiff, .jpg or .jpeg")
+    if suffix in (".jpg", ".jpeg"):
+        if codes.dtype != np.uint8:
+            raise ValueError(f"output: {path} is a JPEG, which holds 8 bits per channel; got {codes.dtype} codes")
+        import imagecodecs
+
+        write_file(
+            path, bytes(imagecodecs.jpeg8_encode(np.ascontiguousarray(codes), level=JPEG_QUALITY)), overwrite=overwrite
+        )
+    elif suffix == ".png":
         write_png(path, codes, overwrite=overwrite)
     else:
         import tifffile

@@ -1,5 +1,5 @@
 """Scale-out primitives: the item axis (scenes, images, training examples) split over processes
-started under ``jax.distributed`` and sharded over a device mesh (DESIGN.md §3).
+started under ``jax.distributed`` and sharded over a device mesh (docs/training.md).
 
 Two ways to spread a run, both built from these pieces:
 

@@ -92,6 +92,15 @@ def _leave_out(bar, seconds: float) -> None:
         bar.last_print_t += seconds
 
 
+def _count(bar, total: int) -> None:
+    """Count one image as done, after its work (and its line, if any) is written: the bar shows
+    the images done, and its last state, N of N, is drawn once, when it closes (drawn also here it
+    showed twice)."""
+    bar.n += 1
+    if bar.n < total:
+        bar.refresh()
+
+
 def _timed(model, rgb, mask) -> tuple[Estimate, float]:
     start = time.perf_counter()
     result = run_model(model, rgb, mask)
@@ -184,11 +193,11 @@ def run_models(
     failures: dict[str, str] = {}
     bar = tqdm(total=count, desc="images", unit="image", disable=not progress, file=sys.stderr)
     for position, item in enumerate(source.prepared(rules, chosen.tolist(), dark=dark)):
-        bar.update(1)
         if item.failure is not None:
             if not keep_going and item.error is not None:
                 raise item.error
             failures[str(item.path)] = item.failure
+            _count(bar, count)
             continue
         preparation["read"] += item.read_seconds
         for name, spent in item.prepare_seconds.items():
@@ -221,6 +230,7 @@ def run_models(
         if each is not None:
             assert image is not None
             each(item.index, image, results)
+        _count(bar, count)
     bar.close()
     if pooled:
         done, estimates, ok, status, failures = _pool(source, every, done, estimates, ok, status, failures)

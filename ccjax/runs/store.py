@@ -24,6 +24,7 @@ import collections
 import contextlib
 import dataclasses
 import enum
+import json
 import os
 import warnings
 from collections.abc import Callable, Hashable, Mapping
@@ -160,7 +161,7 @@ def save_trained(
     model: AbstractEstimator,
     *,
     label: str,
-    camera: str,
+    camera: str | None,
     world_seed: int = 0,
     record: Mapping[str, Any] | None = None,
     overwrite: bool = True,
@@ -172,13 +173,18 @@ def save_trained(
         path: the model file (``.eqx``; the record goes beside it as ``.json``).
         model: the trained estimator.
         label: its registry label (the skeleton :func:`load_model` fits).
-        camera: camera of the default world the skeleton is fitted to.
+        camera: the camera whose default world the start was fitted to, or None when no camera's
+            curves were used (a family that learns from the photographs alone; the skeleton then
+            comes from :meth:`World.default`'s camera, whose numbers the file's leaves replace).
         world_seed: that world's seed.
-        record: more JSON fields (``ccjax.training`` records its schedule and training log).
+        record: more JSON fields (``ccjax.training`` records its procedure and training log).
         overwrite: replace existing files (else ``FileExistsError``).
 
     Returns:
         The model file's path.
+
+    Raises:
+        ValueError: ``record`` holds a value strict JSON cannot (NaN, infinity, an object).
     """
     metadata = {
         **(record or {}),
@@ -187,7 +193,42 @@ def save_trained(
         "camera": camera,
         "world_seed": int(world_seed),
     }
+    try:  # the record is strict JSON: NaN or Infinity would make it unreadable to other parsers
+        json.dumps(metadata, allow_nan=False)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"record: the model record of {path} is not strict JSON: {error}") from None
     return save_model(Path(path), model, metadata, replace=overwrite)
+
+
+def trained_record(path: str | os.PathLike) -> dict[str, Any]:
+    """The JSON record of a model file written by :func:`save_trained` (label, camera, world seed,
+    training procedure and log), checked to be one.
+
+    Arguments:
+        path: the model file (its record is beside it, ``.json``).
+
+    Returns:
+        The record.
+
+    Raises:
+        ValueError: not a trained-model record, another format version, or a field of the wrong type.
+    """
+    path = Path(path)
+    metadata = read_model_metadata(path)
+    if metadata.get("kind") != "trained-estimator" or "label" not in metadata:
+        raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
+    fields = (
+        ("label", str, None, "a str"),
+        ("camera", (str, type(None)), None, "a str or null"),
+        ("world_seed", int, 0, "an int"),
+    )
+    for field_name, kind, default, expected in fields:
+        value = metadata.get(field_name, default)
+        # A record names its camera, or says it used none (null): a missing field is neither.
+        missing = field_name == "camera" and field_name not in metadata
+        if missing or not isinstance(value, kind) or isinstance(value, bool):
+            raise ValueError(f"model: the record of {path} gives {field_name} {value!r}; expected {expected}")
+    return metadata
 
 
 def load_model(path: str | os.PathLike) -> AbstractEstimator:
@@ -199,20 +240,15 @@ def load_model(path: str | os.PathLike) -> AbstractEstimator:
 
     Returns:
         The trained estimator: the recorded method label fitted to ``World.default(camera,
-        seed=world_seed)`` from the file's record, with every array leaf replaced by the file's.
+        seed=world_seed)`` from the file's record (``World.default``'s camera when the record names
+        none), with every array leaf replaced by the file's.
 
     Raises:
         ValueError: not a trained-model file, another format version, or leaves that do not fit.
     """
     path = Path(path)
-    metadata = read_model_metadata(path)
-    if metadata.get("kind") != "trained-estimator" or "label" not in metadata:
-        raise ValueError(f"model: {path} is not a trained-estimator file (format {FORMAT_VERSION})")
-    for field_name, kind in (("label", str), ("camera", str), ("world_seed", int)):
-        value = metadata.get(field_name, 0 if field_name == "world_seed" else None)
-        if not isinstance(value, kind) or isinstance(value, bool):
-            raise ValueError(f"model: the record of {path} gives {field_name} {value!r}; expected a {kind.__name__}")
-    skeleton = fit(metadata["label"], world("default", metadata["camera"], seed=metadata.get("world_seed", 0)))
+    metadata = trained_record(path)
+    skeleton = fit(metadata["label"], world("default", metadata.get("camera"), seed=metadata.get("world_seed", 0)))
     return load_leaves(path, skeleton)
 
 

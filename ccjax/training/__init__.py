@@ -32,7 +32,13 @@ from ccjax.training._pretraining import (
     render_examples,
     render_images,
 )
-from ccjax.training._procedures import LOG_CHROMA_SCHEDULE, default_schedule, train_model
+from ccjax.training._procedures import (
+    LOG_CHROMA_SCHEDULE,
+    default_schedule,
+    procedure_record,
+    train_model,
+    uses_schedule,
+)
 
 __all__ = [
     "LOG_CHROMA_SCHEDULE",
@@ -56,6 +62,7 @@ __all__ = [
     "planckian_locus",
     "predict",
     "pretrain",
+    "procedure_record",
     "read_examples",
     "read_folds",
     "render_examples",
@@ -64,4 +71,5 @@ __all__ = [
     "subsample",
     "train_model",
     "train_on_images",
+    "uses_schedule",
 ]

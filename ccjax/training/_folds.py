@@ -16,7 +16,7 @@ from ccjax.preprocessing import resolve
 from ccjax.training._data import Examples, read_examples
 from ccjax.training._loop import Schedule, TrainingLog, angular_errors
 from ccjax.training._pretraining import Pretraining, pretrain
-from ccjax.training._procedures import default_schedule, train_model
+from ccjax.training._procedures import default_schedule, procedure_record, train_model
 
 
 def read_folds(ground_truth: str | os.PathLike) -> dict[str, int] | None:
@@ -185,7 +185,7 @@ def train_on_images(
     ground_truth: str | os.PathLike,
     method: str,
     *,
-    camera: str = "Canon EOS 5D Mark II",
+    camera: str | None = None,
     world_seed: int = 0,
     folds: int | None = None,
     fold_seed: int = 0,
@@ -209,7 +209,10 @@ def train_on_images(
     Arguments:
         directory: the image folder; ground_truth: its CSV.
         method: a registry label of a trainable family.
-        camera: camera of the default world the start is fitted to.
+        camera: camera of the default world the start is fitted to (None: ``World.default``'s).
+            The model file records it when it is given or the family is world-based (its start
+            is the camera's spectral fit), and records none otherwise (FFCC, the log-chroma MLP
+            and grey edge learn from the photographs alone).
         world_seed: that world's seed.
         folds: number of cross-validation folds (``None``: none).
         fold_seed: seed of the random fold assignment.
@@ -229,7 +232,9 @@ def train_on_images(
     """
     from ccjax.runs import store
 
-    start = store.fit(method, store.world("default", camera, seed=world_seed))
+    world = store.world("default", camera, seed=world_seed)
+    start = store.fit(method, world)
+    recorded_camera = camera if camera is not None or not start.world_based else world.camera.name
     schedule = schedule or default_schedule(start)
     # The inputs ``ccjax evaluate`` gives the method (its default preprocessing), as ``evaluate --train``.
     table = read_ground_truth_file(ground_truth)
@@ -256,10 +261,10 @@ def train_on_images(
         )
     model, log = train_model(start, examples, schedule, progress=progress, fine_tune=tune)
     if out is not None:
-        record = {"schedule": asdict(schedule), "log": log.as_dict()}
+        record = {**procedure_record(start, schedule, fine_tune=tune), "log": log.as_dict()}
         if pretraining is not None:
             record["pretraining"] = asdict(pretraining)
         store.save_trained(
-            out, model, label=method, camera=camera, world_seed=world_seed, record=record, overwrite=overwrite
+            out, model, label=method, camera=recorded_camera, world_seed=world_seed, record=record, overwrite=overwrite
         )
     return model, log, validation

@@ -101,7 +101,24 @@ class TrainingLog:
     n_heldout: int = 0
 
     def as_dict(self) -> dict:
-        return dict(self.__dict__)
+        """The log as strict JSON values: only what the fit measured (a fit with nothing held out,
+        FFCC's, has no held-out errors, best epoch or early stopping to report).
+
+        Returns:
+            A dict of numbers, lists of numbers and booleans, none of them NaN.
+        """
+        record = dict(self.__dict__)
+        if self.n_heldout == 0:
+            for name in (
+                "heldout_median",
+                "heldout_mean",
+                "initial_median",
+                "best_epoch",
+                "stopped_early",
+                "n_heldout",
+            ):
+                del record[name]
+        return record
 
 
 def subsample(

@@ -15,7 +15,7 @@ from ccjax.estimators.neural import LogChromaNet
 from ccjax.training._data import Examples
 from ccjax.training._loop import Schedule, TrainingLog, fit_to_examples
 
-__all__ = ["LOG_CHROMA_SCHEDULE", "default_schedule", "train_model"]
+__all__ = ["LOG_CHROMA_SCHEDULE", "default_schedule", "procedure_record", "train_model", "uses_schedule"]
 
 LOG_CHROMA_SCHEDULE = Schedule(learning_rate=0.005, epochs=200, patience=20, stop_on="mean")
 """The log-chroma MLP's schedule. A net of some 70,000 weights on the ~170 training images of
@@ -50,6 +50,37 @@ def _fit_ffcc(
 _PROCEDURES = {FFCC: _fit_ffcc}
 
 _SCHEDULES = {LogChromaNet: LOG_CHROMA_SCHEDULE}
+
+
+def uses_schedule(model: AbstractEstimator) -> bool:
+    """Whether ``model``'s family is trained by the Adam loop, whose :class:`Schedule` (epochs,
+    batch size, learning rate, patience) applies; False for a family with its own solver (FFCC).
+
+    Arguments:
+        model: the fitted start.
+
+    Returns:
+        True for the Adam loop.
+    """
+    return not any(isinstance(model, kind) for kind in _PROCEDURES)
+
+
+def procedure_record(model: AbstractEstimator, schedule: Schedule, *, fine_tune: bool = False) -> dict:
+    """What a model file records of how it was trained: the Adam loop's schedule, or FFCC's own
+    solver with the seed of its choice of settings (no schedule: none of it applies).
+
+    Arguments:
+        model: the fitted start.
+        schedule: the schedule :func:`train_model` was given.
+        fine_tune: the start was pretrained (FFCC then keeps its default settings).
+
+    Returns:
+        A JSON-able dict: ``procedure`` and its settings.
+    """
+    if uses_schedule(model):
+        return {"procedure": "Adam", "schedule": dataclasses.asdict(schedule)}
+    settings = "the defaults (a fine-tune)" if fine_tune else "chosen by two-fold validation within the training images"
+    return {"procedure": "FFCC: L-BFGS on every training image", "settings": settings, "seed": schedule.seed}
 
 
 def default_schedule(model: AbstractEstimator, **changes) -> Schedule:
