@@ -20,6 +20,7 @@ from ccjax.cli.common import (
     pretrain_arguments,
     pretraining_setting,
     start_processes,
+    table_stream,
     world_arguments,
     write,
     write_plot,
@@ -321,6 +322,7 @@ def run_evaluate(args) -> int:
         overwrite=args.overwrite,
     )
     check_plot(args.plot)
+    table_stream(args)  # --json - and --csv - at once: refused before any work
     pretraining = pretraining_setting(args)
     if pretraining is not None and args.train is None:
         raise SystemExit("--pretrain-camera: applies to --train (the labels trained within the folds)")
@@ -368,13 +370,15 @@ def labels_of(methods: list[str]) -> list[str]:
 
 def report_folder(scored, args) -> None:
     """One folder's header, tables and outputs (``--json``, ``--csv``, ``--plot``, ``--models``)."""
-    evaluation = scored.evaluation
-    print(header(evaluation, args))
+    evaluation, out = scored.evaluation, table_stream(args)
+    print(header(evaluation, args), file=out)
     if evaluation.unlisted:
-        print(f"not scored, no ground-truth row ({len(evaluation.unlisted)}): {', '.join(evaluation.unlisted)}")
+        print(
+            f"not scored, no ground-truth row ({len(evaluation.unlisted)}): {', '.join(evaluation.unlisted)}", file=out
+        )
     if evaluation.check is not None:
-        print(evaluation.check.message())
-    print(evaluation.tables(), flush=True)
+        print(evaluation.check.message(), file=out)
+    print(evaluation.tables(), file=out, flush=True)
     if args.json:
         write(args.json, json.dumps(evaluation.report(), indent=1), overwrite=args.overwrite)
     if args.csv:
@@ -389,7 +393,7 @@ def report_folder(scored, args) -> None:
         for path in save_fold_models(
             evaluation, args.models, scored.world_camera, world_seed=args.seed, overwrite=args.overwrite
         ):
-            print(f"wrote {path}")
+            print(f"wrote {path}", file=out)
 
 
 def report_sets(result, args) -> None:
@@ -398,16 +402,17 @@ def report_sets(result, args) -> None:
     folds = f"; {args.folds} folds in each folder" if args.folds else ""
     if args.leave_one_camera_out:
         folds = f"; leave-one-camera-out: {', '.join(args.train)} trained on the other folders ({args.camera_map} maps)"
-    print(f"{len(args.directories)} folders; preprocessing: {preparation}{folds}")
+    out = table_stream(args)
+    print(f"{len(args.directories)} folders; preprocessing: {preparation}{folds}", file=out)
     for scored in result.sets:
         if scored.evaluation.check is not None:
-            print(f"{scored.folder.label}: {scored.evaluation.check.message()}")
-    print(result.table(), flush=True)
+            print(f"{scored.folder.label}: {scored.evaluation.check.message()}", file=out)
+    print(result.table(), file=out, flush=True)
     if args.json:
         write(args.json, json.dumps(result.report(), indent=1), overwrite=args.overwrite)
     if args.models:
         for path in result.save_models(args.models, seed=args.seed, overwrite=args.overwrite):
-            print(f"wrote {path}")
+            print(f"wrote {path}", file=out)
 
 
 COMMANDS = [add_evaluate]

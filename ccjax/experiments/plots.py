@@ -7,6 +7,7 @@ ccjax never needs it.
 
 from __future__ import annotations
 
+import os
 import typing
 from collections.abc import Sequence
 
@@ -138,10 +139,15 @@ def plot_world(world: World, path) -> None:
         plt.close(fig)
 
 
+FILE_NAME_TICKS = 40
+"""Up to this many images, :func:`plot_image_errors` names each image under its errors."""
+
+
 def plot_image_errors(results: ImageResults, path, title: str | None = None) -> None:
     """Per-image angular errors of every method: their cumulative distribution (the share of
-    images within each error) and each image's error, images ordered by the first method's error;
-    estimates that fell back or relaxed (not ok) are drawn hollow.
+    images within each error) and each image's error, images ordered by the first method's error
+    and named by their files (up to :data:`FILE_NAME_TICKS` images); estimates that fell back or
+    relaxed (not ok) are drawn hollow. Both panels have a legend.
 
     Arguments:
         results: an evaluation with ground truth (:class:`ccjax.experiments.evaluation.ImageResults`).
@@ -166,8 +172,14 @@ def plot_image_errors(results: ImageResults, path, title: str | None = None) -> 
     cumulative.set_ylabel("share of images with at most this error")
     each.set_xlabel(f"image (ordered by {methods[0]}'s error)" if methods else "image")
     each.set_ylabel(STATISTIC_LABELS["angular"])
-    each.xaxis.get_major_locator().set_params(integer=True)
+    names = [os.path.basename(str(results.paths[i])) for i in order]
+    if 0 < len(names) <= FILE_NAME_TICKS:  # few enough images to name each one under its errors
+        each.set_xticks(np.arange(len(names)), names, rotation=90, fontsize=6)
+    else:
+        each.xaxis.get_major_locator().set_params(integer=True)
     for ax in (cumulative, each):
         ax.grid(alpha=0.3)
     cumulative.legend(fontsize=8, loc="lower right")
+    if methods:
+        each.legend(fontsize=8, loc="upper left")
     _finish(plt, fig, path, title or f"angular error over {len(results.paths)} images (hollow: fell back or relaxed)")

@@ -1,0 +1,76 @@
+"""``ccjax evaluate``'s machine-readable outputs: with ``--json -`` or ``--csv -`` standard output
+holds only the data (a script parses it), the tables go to standard error; and its ``--plot``
+names every method in both panels and each image under its errors."""
+
+from __future__ import annotations
+
+import csv
+import io as text_io
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from ccjax import cli, io, scenes
+from ccjax.evaluation import ImageResults
+from ccjax.experiments.plots import plot_image_errors
+
+
+@pytest.fixture
+def folder(small_world_commands, small_test_world):
+    batch = scenes.sample_mondrians(jax.random.key(5), small_test_world, 6, height=12, width=12, n_patches=4)
+    io.write_dataset(small_world_commands / "set", np.asarray(batch.image), np.asarray(batch.illuminant))
+    return small_world_commands / "set"
+
+
+def _argv(folder, *extra):
+    gt = str(folder / "groundtruth.csv")
+    return ["evaluate", str(folder), "--ground-truth", gt, "--methods", "GW,shades-of-grey-p6", "--no-progress", *extra]
+
+
+def test_json_to_standard_output_is_only_the_data(folder, capsys):
+    assert cli.main(_argv(folder, "--json", "-")) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)  # fails at char 0 when a table comes first
+    assert set(report["summary"]) == {"GW", "shades-of-grey-p6"} and len(report["images"]) == 12
+    assert "angular error (degrees)" in captured.err
+
+
+def test_csv_to_standard_output_is_only_the_data(folder, capsys):
+    assert cli.main(_argv(folder, "--csv", "-")) == 0
+    captured = capsys.readouterr()
+    rows = list(csv.DictReader(text_io.StringIO(captured.out)))
+    assert len(rows) == 12 and {row["method"] for row in rows} == {"GW", "shades-of-grey-p6"}
+    assert all(float(row["angular"]) >= 0 for row in rows)
+
+
+def test_json_and_csv_cannot_share_standard_output(folder, capsys):
+    assert cli.main(_argv(folder, "--json", "-", "--csv", "-")) == 2
+    assert "--json, --csv" in capsys.readouterr().err
+
+
+def test_the_error_plot_has_a_legend_in_both_panels_and_names_the_images(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figures = []
+    monkeypatch.setattr(plt, "close", lambda fig=None: figures.append(fig))
+    truth = np.array([[1.0, 1.0, 1.0], [1.0, 0.8, 0.6], [0.5, 1.0, 0.9]])
+    results = ImageResults(
+        paths=["a.png", "b.png", "c.png"],
+        estimates={"GW": truth * [1.0, 1.1, 1.0], "DB-GW": truth * [1.2, 1.0, 1.0]},
+        ok={"GW": np.ones(3, bool), "DB-GW": np.array([True, False, True])},
+        truth=truth,
+    )
+    plot_image_errors(results, tmp_path / "errors.png")
+    assert (tmp_path / "errors.png").stat().st_size > 0
+    axes = [fig for fig in figures if fig is not None][-1].axes
+    assert len(axes) == 2
+    for ax in axes:
+        legend = ax.get_legend()
+        assert legend is not None and [t.get_text() for t in legend.get_texts()] == ["GW", "DB-GW"]
+    ticks = [t.get_text() for t in axes[1].get_xticklabels()]
+    assert sorted(ticks) == ["a.png", "b.png", "c.png"]
