@@ -270,7 +270,7 @@ def header(evaluation, args) -> str:
     else:
         folds = ""
     preparation = args.preprocessing or "each method's default"
-    # Without --camera (or --world) only methods that use no camera run (require_camera): naming
+    # Without --camera (or --world) only methods that use no camera run (refuse_without_camera): naming
     # the default world's camera would claim a camera the images were never matched to.
     given = args.camera is not None or args.world != "default"
     world = f"world: {evaluation.world}" if given else "camera: none given (these methods use none)"
@@ -330,11 +330,11 @@ def run_evaluate(args) -> int:
         raise SystemExit("--pretrain-camera: applies to one folder (its camera's curves render the images)")
     check_camera_option(args)
     several = len(args.directories) > 1
-    if not several or (not any(cameras.values()) and args.world == "default"):
-        # One folder, or no folder with a camera: world-based methods would run on curves the
-        # images were never matched to (several folders: they would be left out of every folder).
-        args.camera = cameras[args.directories[0]]
-        image_options.require_camera(labels_of(args.methods) + (args.train or []), args)
+    # One folder, or no folder with a camera: world-based methods would run on curves the images
+    # were never matched to (several folders with some cameras: they are left out of the others).
+    refuse = not several or not any(cameras.values())
+    if not several:
+        args.camera = cameras[args.directories[0]]  # --camera-for of the one folder names its camera
     _cache.enable_compilation_cache()
     folders, protocol, read, options = evaluation_values(args, cameras, pretraining)
     try:
@@ -348,6 +348,7 @@ def run_evaluate(args) -> int:
             data_dir=args.data_dir,
             progress=not args.no_progress,
             log=lambda line: print(line, file=sys.stderr),
+            refuse_without_camera=refuse,
         )
     except ValueError as error:
         raise image_options.as_option_error(error) from None

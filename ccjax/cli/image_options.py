@@ -19,6 +19,7 @@ OPTION_NAMES = {
     "ground_truth": "--ground-truth",
     "allow_missing": "--allow-missing",
     "methods": "--methods",
+    "camera": "--camera",
     "camera_map": "--camera-map",
     "rendered": "--rendered",
     "seed": "--seed",

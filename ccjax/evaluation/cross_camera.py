@@ -163,7 +163,10 @@ def pooled_source(training: Sequence[FolderData], target: str, camera_map: str, 
         fitted = None
         if folder.camera != target:
             fitted = fit_camera_map(
-                folder.camera, target, kind=camera_map, world=store.world("default", folder.camera, seed=seed)
+                folder.camera,
+                target,
+                kind="global" if camera_map == "global" else "per-light",
+                world=store.world("default", folder.camera, seed=seed),
             )
         parts.append(MappedFolder(folder.source, folder.truth, folder.path_names, folder.camera, fitted, folder.label))
     return PooledImages(parts, target)

@@ -146,6 +146,26 @@ class FolderEvaluation:
         return buffer.getvalue()
 
 
+MODEL_SUFFIX = ".eqx"
+"""A method given as a trained model file (``ccjax train --out``) rather than a registry label."""
+
+
+def method_model(method: str, world: World) -> AbstractEstimator:
+    """A method of an evaluation: a registry label fitted to ``world`` (through the store), or a
+    trained model file (``.eqx``, :func:`ccjax.load_model`) as it was trained.
+
+    Arguments:
+        method: a label or a model file's path.
+        world: the scored folder's world.
+
+    Returns:
+        The model.
+    """
+    from ccjax.runs import store
+
+    return store.load_model(method) if method.endswith(MODEL_SUFFIX) else store.fit(method, world)
+
+
 @dataclass
 class FolderData:
     """One labelled folder, its ground truth read and matched to its files once.
@@ -279,8 +299,6 @@ def camera_check(
     Returns:
         The check, or None when it was not needed.
     """
-    from ccjax.evaluation.protocols import method_model
-
     if not asked and not any(method_model(label, world).world_based for label in labels):
         return None
     check = curve_check(data.truth, world)

@@ -23,7 +23,7 @@ import equinox as eqx
 import numpy as np
 
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.evaluation.folders import TRAINED_SUFFIX, FolderData, FolderModels
+from ccjax.evaluation.folders import TRAINED_SUFFIX, FolderData, FolderModels, method_model
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
 from ccjax.evaluation.results import fold_worlds
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, resolve
@@ -31,14 +31,12 @@ from ccjax.world import World
 
 __all__ = [
     "MIN_TRAINING_IMAGES",
-    "MODEL_SUFFIX",
     "AbstractProtocol",
     "FittedToWorld",
     "KFolds",
     "Round",
     "TrainedInFolds",
     "check_fold_options",
-    "method_model",
     "train_in_folds",
     "trainable_starts",
 ]
@@ -115,26 +113,6 @@ class AbstractProtocol(eqx.Module):
         Returns:
             :class:`~ccjax.evaluation.folders.FolderModels`.
         """
-
-
-MODEL_SUFFIX = ".eqx"
-"""A method given as a trained model file (``ccjax train --out``) rather than a registry label."""
-
-
-def method_model(method: str, world: World) -> AbstractEstimator:
-    """A method of an evaluation: a registry label fitted to ``world`` (through the store), or a
-    trained model file (``.eqx``, :func:`ccjax.load_model`) as it was trained.
-
-    Arguments:
-        method: a label or a model file's path.
-        world: the scored folder's world.
-
-    Returns:
-        The model.
-    """
-    from ccjax.runs import store
-
-    return store.load_model(method) if method.endswith(MODEL_SUFFIX) else store.fit(method, world)
 
 
 def _fitted(methods: Sequence[str], world: World, copies: int = 1) -> dict[str, list[AbstractEstimator]]:

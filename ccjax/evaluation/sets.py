@@ -18,15 +18,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ccjax.evaluation.folders import (
+    MODEL_SUFFIX,
     TRAINED_SUFFIX,
     FolderData,
     FolderEvaluation,
     camera_check,
+    method_model,
     read_folder,
     score_folder,
 )
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
-from ccjax.evaluation.protocols import MODEL_SUFFIX, AbstractProtocol, method_model
+from ccjax.evaluation.protocols import AbstractProtocol
 from ccjax.world import World
 
 __all__ = [
@@ -400,6 +402,7 @@ def evaluate(
     data_dir: str | os.PathLike | None = None,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
+    refuse_without_camera: bool = False,
 ) -> SetsEvaluation:
     """Evaluate ``methods`` (and the protocol's trained labels) on folders of photographs, each
     scored folder with its own camera's world, in the protocol's rounds.
@@ -414,6 +417,9 @@ def evaluate(
         data_dir: the external data directory (``barnard1999``).
         progress: progress bars on stderr.
         log: called with a line per folder, warning and training step.
+        refuse_without_camera: refuse world-based methods on a folder without a camera (they
+            would be fitted to curves the images were never matched to) instead of leaving them
+            out of it, before any image is read.
 
     Returns:
         :class:`SetsEvaluation`: one row set per scored folder, the geometric means.
@@ -464,6 +470,13 @@ def evaluate(
         # World-based methods need the camera's own curves: without them they are left out here.
         labels = [*methods, *protocol.trained_labels()]
         left_out = [] if curves else [label for label in labels if method_model(label, world).world_based]
+        if left_out and refuse_without_camera:
+            raise ValueError(
+                f"camera: {', '.join(left_out)} {'is' if len(left_out) == 1 else 'are'} fitted to a world seen "
+                "through a camera's curves; give the camera that took the images with --camera NAME (`ccjax "
+                "cameras` lists the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the "
+                "ground truth) or use --world barnard1999"
+            )
         if log is not None:
             log(f"{folder.label}: {folder.directory} (camera: {folder.camera or 'none given'})")
         try:

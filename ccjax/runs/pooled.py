@@ -183,13 +183,11 @@ class PooledImages:
                 item.index = int(index)
                 if item.failure is None and part.camera_map is not None:
                     light = jnp.asarray(part.lights[local])
-                    item.inputs = {
-                        name: tuple(
-                            np.asarray(a)
-                            for a in map_input(part.camera_map, jnp.asarray(rgb), jnp.asarray(mask), light)
-                        )
-                        for name, (rgb, mask) in item.inputs.items()
-                    }
+                    mapped = {}
+                    for name, (rgb, mask) in item.inputs.items():
+                        rgb_out, mask_out = map_input(part.camera_map, jnp.asarray(rgb), jnp.asarray(mask), light)
+                        mapped[name] = (np.asarray(rgb_out), np.asarray(mask_out))
+                    item.inputs = mapped
                 yield item
 
 
