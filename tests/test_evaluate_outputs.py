@@ -74,3 +74,11 @@ def test_the_error_plot_has_a_legend_in_both_panels_and_names_the_images(tmp_pat
         assert legend is not None and [t.get_text() for t in legend.get_texts()] == ["GW", "DB-GW"]
     ticks = [t.get_text() for t in axes[1].get_xticklabels()]
     assert sorted(ticks) == ["a.png", "b.png", "c.png"]
+
+
+def test_training_within_folds_on_few_images_warns_once_per_method(folder, capsys):
+    """6 images in 3 folds: 4 training images per fold, below the size ``--help`` names (50)."""
+    argv = _argv(folder, "--folds", "3", "--train", "log-chroma-mlp", "--epochs", "1")
+    assert cli.main(argv) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning: log-chroma-mlp" in line]
+    assert len(warnings) == 1 and "4 per fold" in warnings[0] and "fewer than 50" in warnings[0]

@@ -93,7 +93,8 @@ def add_evaluate(sub) -> None:
         "started from its fit to the world and trained (ccjax.training) on the other folds' images for each fold, "
         "never on the fold it scores, and reported as '<label> trained' beside --methods (which are then fitted "
         "to the world as without --folds). Folds come from the ground truth's fold column when it has one, else "
-        "a random assignment seeded by --seed; statistics per fold and pooled",
+        "a random assignment seeded by --seed; statistics per fold and pooled. FFCC and log-chroma-mlp warn below "
+        "50 training images per fold (FFCC on 4 images per fold scored 23 degrees)",
     )
     p.add_argument(
         "--leave-one-camera-out",
@@ -337,6 +338,12 @@ def run_evaluate(args) -> int:
         args.camera = cameras[args.directories[0]]  # --camera-for of the one folder names its camera
     _cache.enable_compilation_cache()
     folders, protocol, read, options = evaluation_values(args, cameras, pretraining)
+    if args.train and not args.leave_one_camera_out:
+        from ccjax.cli.training import warn_few_images
+
+        for folder in folders:
+            for label in args.train:
+                warn_few_images(label, len(ground_truth_rows(folder.ground_truth)), args.folds, "evaluate")
     try:
         result = evaluation.evaluate(
             folders,
@@ -362,6 +369,17 @@ def run_evaluate(args) -> int:
     failures = [line for scored in result.sets for line in scored.evaluation.failures]
     raise_failures(failures, sum(scored.evaluation.total for scored in result.sets))
     return 0
+
+
+def ground_truth_rows(path) -> list[str]:
+    """The image names a ground-truth CSV lists (for the small-training-set warning; a file that
+    cannot be read gives none here and its error when the evaluation reads it)."""
+    from ccjax import io
+
+    try:
+        return list(io.read_ground_truth(path))
+    except (ValueError, OSError):
+        return []
 
 
 def labels_of(methods: list[str]) -> list[str]:

@@ -337,7 +337,7 @@ def folder_cameras(directories, entries, default) -> dict:
     return cameras
 
 
-def warn_few_images(method: str, count: int, folds: int | None) -> None:
+def warn_few_images(method: str, count: int, folds: int | None, command: str = "train") -> None:
     """One warning line when a family of :data:`FROM_PHOTOGRAPHS` gets fewer than
     :data:`FEW_IMAGES` training images (per fold: ``count * (K - 1) / K``).
 
@@ -345,13 +345,15 @@ def warn_few_images(method: str, count: int, folds: int | None) -> None:
         method: the label.
         count: the folder's images.
         folds: ``--folds``, or None.
+        command: the command that warns (``train``, ``evaluate``).
     """
     per_fold = count if folds is None or folds < 2 else count * (folds - 1) // folds
     if method in FROM_PHOTOGRAPHS and per_fold < FEW_IMAGES:
         where = f"{per_fold} per fold" if per_fold != count else f"{count}"
         print(
-            f"ccjax train: warning: {method} trains on {where} images, fewer than {FEW_IMAGES}: a model learned from "
-            "so few photographs is unreliable (FFCC on 4 images per fold scored 23 degrees); see `ccjax train --help`",
+            f"ccjax {command}: warning: {method} trains on {where} images, fewer than {FEW_IMAGES}: a model learned "
+            "from so few photographs is unreliable (FFCC on 4 images per fold scored 23 degrees); see `ccjax train "
+            "--help`",
             file=sys.stderr,
         )
 
