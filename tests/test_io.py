@@ -111,8 +111,8 @@ def test_write_linear_png_and_tiff(tmp_path):
         # Clipped: some channel at the default clip level, 0.98 of saturation (ccjax.io.reading).
         codes = io.writing.quantise(rgb)
         np.testing.assert_array_equal(image.clipped, np.any(codes >= io.reading.CLIP_FRACTION * 65535, axis=-1))
-    with pytest.raises(ValueError, match="must end in"):
-        io.write_linear(tmp_path / "a.jpg", rgb)
+    with pytest.raises(ValueError, match="JPEG, which holds 8 bits per channel"):
+        io.write_linear(tmp_path / "a.jpg", rgb)  # linear 16-bit codes have no JPEG
 
 
 # ---------------------------------------------------------------------------------------------

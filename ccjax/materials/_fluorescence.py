@@ -254,8 +254,21 @@ def nnls_weights(lights: Float[ArrayLike, "K 101"], illuminants: Float[ArrayLike
     basis = _spectra("lights", lights, 2)
     targets = _spectra("illuminants", illuminants, None)
     flat = targets.reshape(-1, targets.shape[-1])
-    weights = np.stack([nnls(basis.T, target)[0] for target in flat]) if flat.size else np.zeros((0, len(basis)))
+    weights = np.stack([_nnls(basis.T, target) for target in flat]) if flat.size else np.zeros((0, len(basis)))
     return weights.reshape(targets.shape[:-1] + (basis.shape[0],))
+
+
+def _nnls(matrix: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """One non-negative least squares. SciPy >= 1.15 stops ``nnls`` at ``3 n`` iterations and raises
+    (older releases allowed more); an ill-conditioned basis can need more, so the iteration cap is
+    raised, and the bounded least squares (``lsq_linear``, BVLS: the same problem) answers where
+    even that is not enough."""
+    try:
+        return nnls(matrix, target, maxiter=100 * matrix.shape[1])[0]
+    except RuntimeError:
+        from scipy.optimize import lsq_linear
+
+        return lsq_linear(matrix, target, bounds=(0.0, np.inf), method="bvls").x
 
 
 class Characterisation(eqx.Module):
