@@ -9,6 +9,7 @@ cache file can be read without running code from it.
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import functools
 import hashlib
@@ -24,6 +25,7 @@ from typing import Any, BinaryIO, TypeVar
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ccjax import limits
@@ -335,6 +337,33 @@ def load_model(path: Path, like: ModelT) -> ModelT:
     """
     read_model_metadata(path)
     try:
-        return eqx.tree_deserialise_leaves(path, like)
+        model = eqx.tree_deserialise_leaves(path, like)
     except (OSError, ValueError, RuntimeError) as error:
         raise ValueError(f"model: {path} does not fit a {type(like).__name__}: {error}") from None
+    for leaf in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array)):
+        if jnp.issubdtype(leaf.dtype, jnp.inexact) and not bool(jnp.all(jnp.isfinite(leaf))):
+            raise ValueError(f"model: {path} holds non-finite values")
+    try:
+        _check_modules(model)
+    except ValueError as error:
+        raise ValueError(f"model: {path}: {error}") from None
+    return model
+
+
+def _check_modules(tree: Any) -> None:
+    """Run equinox's ``__check_init__`` of every Module in ``tree`` again: deserialised leaves
+    never went through a constructor, and a file's leaves must meet the class's own checks."""
+    if isinstance(tree, eqx.Module):
+        for cls in type(tree).__mro__:
+            check = cls.__dict__.get("__check_init__")
+            if check is not None:
+                check(tree)
+    if isinstance(tree, eqx.Module) or (dataclasses.is_dataclass(tree) and not isinstance(tree, type)):
+        for field in dataclasses.fields(tree):
+            _check_modules(getattr(tree, field.name, None))
+    elif isinstance(tree, (list, tuple)):
+        for item in tree:
+            _check_modules(item)
+    elif isinstance(tree, dict):
+        for item in tree.values():
+            _check_modules(item)

@@ -3,12 +3,13 @@
 The readers (images, CSV files, model records, cache entries), the samplers (``ccjax.sample``,
 ``compare --scenes``) and the command line all take their bounds from here, so that an input
 within its documented limit runs in bounded memory and one past it is refused up front, with the
-limit and the option that changes it named (:func:`check_count`). The table is also the "Limits"
+limit and the option that changes it named (:func:`describe`). The table is also the "Limits"
 section of the docs.
 """
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
 
 
@@ -30,13 +31,12 @@ class Limit:
 PIXELS = Limit(100_000_000, "pixels per image (from the file's header, before decoding)", "--max-pixels / max_pixels")
 """An image whose header claims more pixels is refused before anything is allocated for it."""
 
-SCENES = Limit(10_000_000, "scenes of one synthetic run (sampled in chunks)", "--scenes / n_scenes")
-"""``ccjax.sample``'s and ``compare``'s scene count (a sweep streams them in chunks; a sample
-holds them all: 10 M scenes of 64 surfaces hold about 8 GB, so ``ccjax.sample`` has its own
-bound, :data:`SAMPLE_SCENES`)."""
+SCENES = Limit(1_000_000, "scenes of one synthetic run", "--scenes / n_scenes")
+"""``compare``'s and ``sharpen``'s scene count: the scenes stream through in chunks, but each
+(method, surface count) keeps eight numbers per scene (32 MB per cell at the limit)."""
 
-SAMPLE_SCENES = Limit(1_000_000, "scenes held at once by ccjax.sample", "n_scenes (sample in several calls)")
-"""``ccjax.sample`` returns every scene at once (a 64-surface scene is about 800 bytes)."""
+SAMPLE_SCENES = Limit(100_000, "scenes held at once by ccjax.sample", "n_scenes (sample in several calls)")
+"""``ccjax.sample`` returns every scene at once (a 64-surface scene holds about 2 KB)."""
 
 SIGMA = Limit(64.0, "grey edge's Gaussian sigma, in pixels", "the method label (e.g. grey-edge-1-6-2)")
 """A Gaussian of sigma ``s`` has ``8 s + 1`` taps; past 64 pixels (a 513-tap kernel) the estimate
@@ -57,14 +57,22 @@ NESTING = Limit(64, "nesting depth of a JSON record", "")
 CACHE_ENTRY_BYTES = Limit(4 << 30, "bytes of one cache entry's arrays", "")
 """Checked from the archive's headers before an array is allocated."""
 
-SEED = Limit(2**63 - 1, "seed", "--seed")
-"""Seeds are 64-bit signed integers (JAX's and NumPy's keys)."""
+SEED = Limit(2**32 - 1, "seed", "--seed")
+"""Seeds are 32-bit: JAX's keys (without x64) take a seed's low 32 bits, so larger seeds would
+give the same scenes as smaller ones."""
 
-OBJECTS = Limit(100_000, "objects of an indexing experiment", "--objects")
-"""Each object is a rendered set of surfaces held at once."""
+OBJECTS = Limit(10_000, "objects of an indexing experiment", "--objects")
+"""200 times the default of 50; the experiment holds every object's histograms at once."""
 
-SHARPENING_PENALTY = Limit(1e6, "a sharpening penalty weight (--lambda-p, --lambda-n)", "--lambda-p")
-"""Penalty weights past a million only scale the objective's other terms away."""
+SHARPENING_PENALTY = Limit(1e8, "a sharpening penalty weight", "--lambda-p / lambda_p, lambda_n")
+"""The new method's search tries weights up to 1e7; past 1e8 the objective's other terms vanish
+in float32."""
+
+VALUE = Limit(1e30, "magnitude of a light or pixel value given as an array or a CSV number", "")
+"""Lights and pixels may be on any scale up to this (files are read on the unit scale); past it a
+float32 sum of three channels, or the reciprocal of a peak, leaves the normal range. The other
+end: a non-zero value must be a normal float32 (at least about 1.2e-38), as devices flush
+smaller ones to zero."""
 
 TABLE: tuple[Limit, ...] = (
     PIXELS,
@@ -79,37 +87,37 @@ TABLE: tuple[Limit, ...] = (
     SEED,
     OBJECTS,
     SHARPENING_PENALTY,
+    VALUE,
 )
 """Every limit above, in the order of the docs' table."""
 
 
-def check_count(value: object, limit: Limit, argument: str, *, low: int = 1) -> int:
-    """``value`` as an integer in ``[low, limit.value]``, else a ``ValueError`` naming ``argument``
-    and the limit.
+def require_count(value, name: str, low: int, high: int | Limit | None = None) -> int:
+    """``value`` as a Python ``int`` (any integer-like value, e.g. ``np.int64``, via
+    ``operator.index``); a ``ValueError`` naming ``name`` when it is not an integer in range.
 
     Arguments:
-        value: an integer (a float with an integral value, such as ``1e6``, is accepted).
-        limit: the bound.
-        argument: the argument's name for the message (``"n_scenes"``, ``"--scenes"``).
-        low: the smallest accepted value.
+        value: the count to check.
+        name: the argument's name, for the error.
+        low: smallest allowed value.
+        high: largest allowed value, or a :class:`ccjax.Limit` (named in the error with
+            the option that changes it); ``None``: no bound.
 
     Returns:
-        The value as an ``int``.
-
-    Raises:
-        ValueError: not an integer, or outside ``[low, limit.value]``.
+        ``value`` as an ``int``.
     """
-    if isinstance(value, bool) or (not isinstance(value, (int, float)) and not hasattr(value, "__index__")):
-        raise ValueError(f"{argument}: expected an integer, got {value!r}")
-    if isinstance(value, float):
-        if not value.is_integer():
-            raise ValueError(f"{argument}: expected an integer, got {value!r}")
-        value = int(value)
-    number = int(value)  # pyright: ignore[reportArgumentType]
-    if number < low:
-        raise ValueError(f"{argument}: expected an integer >= {low}, got {number}")
-    if number > limit.value:
-        raise ValueError(f"{argument}: {number} is over the limit of {limit.value:,} {limit.what}{_how(limit)}")
+    top = int(high.value) if isinstance(high, Limit) else high
+    span = f"an integer >= {low}" if top is None else f"an integer in [{low}, {top}]"
+    if isinstance(value, bool):
+        raise ValueError(f"{name}: expected {span}, got the boolean {value!r}")
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise ValueError(f"{name}: expected {span}, got {value!r} of type {type(value).__name__}") from None
+    if isinstance(high, Limit) and number > high.value:
+        raise ValueError(f"{name}: {number:,} is over {describe(high)}")
+    if number < low or (top is not None and number > top):
+        raise ValueError(f"{name}: expected {span}, got {number}")
     return number
 
 
@@ -139,6 +147,46 @@ def check_value(value: float, limit: Limit, argument: str, *, low: float = 0.0) 
     return number
 
 
+SMALLEST_NORMAL = 1.1754944e-38
+"""float32's smallest normal number: smaller non-zero values are flushed to zero on devices."""
+
+
+def check_magnitudes(values, argument: str) -> None:
+    """Refuse values whose non-zero magnitudes lie outside ``[SMALLEST_NORMAL, VALUE]``.
+
+    Arguments:
+        values: a NumPy array (already checked finite).
+        argument: the argument's name for the message.
+
+    Raises:
+        ValueError: a value past either end, named with its limit.
+    """
+    import numpy as np
+
+    magnitude = np.abs(np.asarray(values, np.float64))
+    if magnitude.size and magnitude.max() > VALUE.value:
+        raise ValueError(f"{argument}: {magnitude.max():g} is over the limit of {VALUE.value:g} ({VALUE.what})")
+    tiny = magnitude[(magnitude > 0) & (magnitude < SMALLEST_NORMAL)]
+    if tiny.size:
+        raise ValueError(
+            f"{argument}: {tiny[0]:g} is below float32's smallest normal number {SMALLEST_NORMAL:g} "
+            "(devices read it as zero); scale the values up"
+        )
+
+
+def describe(limit: Limit) -> str:
+    """The limit for a message: ``"the limit of 1,000,000 scenes ... (see --scenes / n_scenes)"``.
+
+    Arguments:
+        limit: the bound.
+
+    Returns:
+        The phrase.
+    """
+    value = f"{limit.value:,}" if isinstance(limit.value, int) else f"{limit.value:g}"
+    return f"the limit of {value} ({limit.what}){_how(limit)}"
+
+
 def _how(limit: Limit) -> str:
     return f" (see {limit.option})" if limit.option else ""
 
@@ -156,8 +204,12 @@ __all__ = [
     "SEED",
     "SHARPENING_PENALTY",
     "SIGMA",
+    "SMALLEST_NORMAL",
     "TABLE",
+    "VALUE",
     "Limit",
-    "check_count",
+    "check_magnitudes",
     "check_value",
+    "describe",
+    "require_count",
 ]

@@ -22,6 +22,7 @@ from pathlib import Path, PurePath
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ccjax import limits
 from ccjax.io.files import write_file
 from ccjax.io.reading import list_images
 
@@ -109,6 +110,7 @@ def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) 
                     raise ValueError(
                         f"ground truth: {path} line {line}: r,g,b must be finite, non-negative, not all zero"
                     )
+                limits.check_magnitudes(rgb, f"ground truth: {path} line {line}: r,g,b")
                 name = row["image"].strip()
                 _check_name(path, line, name)
                 if name in truth:

@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ccjax import limits
+from ccjax.io.jpeg import jpeg_layout, read_jpeg
 from ccjax.io.png import png_encoding, png_header, read_png
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
@@ -51,8 +53,8 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *JPEG_SUFFIXES, *RAW_SUFFIXES)
 CLIP_FRACTION = 0.98
 """Default clip level as a fraction of the saturation level (module docstring)."""
 
-MAX_PIXELS = 100_000_000
-"""Default pixel budget of :func:`probe_image` and :func:`read_image` (100 MP): a 48 MP camera
+MAX_PIXELS = int(limits.PIXELS.value)
+"""Default pixel budget (:data:`ccjax.limits.PIXELS`) of :func:`probe_image` and :func:`read_image` (100 MP): a 48 MP camera
 image passes, a file whose header claims more is refused before anything is allocated for it (a
 74-byte PNG can claim 100000 x 100000 pixels; decoding it would need 60 GB)."""
 
@@ -144,25 +146,8 @@ def _read_pixels(path: Path) -> np.ndarray:
             pixels = np.moveaxis(pixels, 0, -1)  # planar (separate) configuration
         return pixels
     if suffix in JPEG_SUFFIXES:
-        import imagecodecs
-
-        return np.asarray(imagecodecs.jpeg8_decode(path.read_bytes()))
+        return read_jpeg(path)
     raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
-
-
-def _jpeg_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
-    """Shape and sample type of a JPEG from its header: imagecodecs decodes JPEG only whole, and
-    Pillow's open reads the header alone (its modes of baseline JPEG are 8-bit)."""
-    from PIL import Image
-
-    with Image.open(path) as image:
-        if image.format != "JPEG":
-            raise ValueError(f"not a JPEG file ({image.format})")
-        width, height = image.size
-        channels = {"L": 1, "RGB": 3}.get(image.mode)
-    if channels is None:
-        raise ValueError(f"JPEG colour mode {image.mode} is not supported; expected RGB")
-    return (height, width) + ((channels,) if channels > 1 else ()), np.dtype(np.uint8)
 
 
 def _check_layout(
@@ -199,7 +184,7 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
         with tifffile.TiffFile(path) as tif:
             return _tiff_layout(tif)
     if suffix in JPEG_SUFFIXES:
-        return _jpeg_layout(path)
+        return jpeg_layout(path)
     if suffix in RAW_SUFFIXES:
         with _rawpy(path).imread(str(path)) as raw:
             sizes = raw.sizes

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike, Float
 
-from ccjax import scenes
+from ccjax import limits, scenes
 from ccjax._cache import code_fingerprint, content_key
 from ccjax._entries import Expect, read_arrays, write_arrays
 from ccjax.estimators.base import AbstractEstimator, Padding, Status, require_kind
@@ -65,7 +65,7 @@ class SyntheticSource:
         if not counts:
             raise ValueError("n_surfaces: expected at least one surface count, got none")
         object.__setattr__(self, "surfaces", counts)
-        object.__setattr__(self, "n_scenes", require_count(self.n_scenes, "n_scenes", 1))
+        object.__setattr__(self, "n_scenes", require_count(self.n_scenes, "n_scenes", 1, limits.SCENES))
         if not isinstance(self.options, SceneOptions):
             raise ValueError(f"options: expected a SceneOptions, got {type(self.options).__name__}")
 
