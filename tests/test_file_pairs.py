@@ -62,6 +62,6 @@ def test_a_model_that_appears_meanwhile_takes_its_record_back(tmp_path, monkeypa
 
 def test_an_existing_half_of_the_pair_is_named_before_anything_is_written(tmp_path, model):
     (tmp_path / "model.json").write_text("{}")
-    with pytest.raises(FileExistsError, match="model.json"):
+    with pytest.raises(FileExistsError, match=r"model\.json"):
         store.save_trained(tmp_path / "model.eqx", model, label="GW", camera="Canon EOS 600D", overwrite=False)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]

@@ -54,9 +54,10 @@ CLIP_FRACTION = 0.98
 """Default clip level as a fraction of the saturation level (module docstring)."""
 
 MAX_PIXELS = int(limits.PIXELS.value)
-"""Default pixel budget (:data:`ccjax.limits.PIXELS`) of :func:`probe_image` and :func:`read_image` (100 MP): a 48 MP camera
-image passes, a file whose header claims more is refused before anything is allocated for it (a
-74-byte PNG can claim 100000 x 100000 pixels; decoding it would need 60 GB)."""
+"""Default pixel budget (:data:`ccjax.limits.PIXELS`) of :func:`probe_image` and
+:func:`read_image` (100 MP): a 48 MP camera image passes, a file whose header claims more is
+refused before anything is allocated for it (a 74-byte PNG can claim 100000 x 100000 pixels;
+decoding it would need 60 GB)."""
 
 
 @dataclass(frozen=True)
@@ -195,9 +196,12 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
 def _check_file(path: Path, kind: str) -> None:
     """Refuse a path that is not a regular file (missing, a folder, a device such as /dev/zero)."""
     if not path.exists():
+        if path.is_symlink():
+            raise ValueError(f"{kind}: {path} is a symbolic link to nothing (dangling, or a loop)")
         raise FileNotFoundError(f"{kind}: no such file: {path}")
     if not path.is_file():
-        raise ValueError(f"{kind}: {path} is not a regular file")
+        what = "a folder" if path.is_dir() else "not a regular file (a FIFO, socket or device)"
+        raise ValueError(f"{kind}: {path} is {what}")
 
 
 def check_pixels(path: str | os.PathLike, height: int, width: int, max_pixels: int | None) -> None:
@@ -453,7 +457,8 @@ def read_mask(path: str | os.PathLike, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
-    """Expand files and folders (a folder gives its image files, sorted, not recursive).
+    """Expand files and folders (a folder gives its entries named as images, sorted, not
+    recursive; entries that are not regular files are kept, for the reader to refuse by name).
 
     Arguments:
         paths: files and folders.
@@ -464,7 +469,10 @@ def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
     found: list[Path] = []
     for item in map(Path, paths):
         if item.is_dir():
-            found += sorted(p for p in item.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+            # Every entry named as an image, regular file or not: a dangling or looping link, a
+            # FIFO or a folder named ``*.png`` is the reader's to refuse (a failure the run
+            # reports), never dropped without a word.
+            found += sorted(p for p in item.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         else:
             found.append(item)
     return found
