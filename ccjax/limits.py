@@ -42,11 +42,12 @@ SIGMA = Limit(64.0, "grey edge's Gaussian sigma, in pixels", "the method label (
 """A Gaussian of sigma ``s`` has ``8 s + 1`` taps; past 64 pixels (a 513-tap kernel) the estimate
 is a global average of the image, and the kernel's cost grows without bound."""
 
-CSV_ROWS = Limit(1_000_000, "rows of a CSV file (ground truth, sensor curves)", "")
-"""A ground-truth table of a million photographs, or a sensor curve at 0.001 nm, fits."""
+CSV_ROWS = Limit(100_000, "rows of a CSV file (ground truth, calibration data)", "")
+"""The largest photo sets have a few thousand images; a checked ground-truth row costs a few
+kilobytes (``cameras --check``), so the limit bounds that at a few hundred megabytes."""
 
-CSV_BYTES = Limit(256 << 20, "bytes of a CSV file", "")
-"""Read whole before parsing."""
+CSV_BYTES = Limit(64 << 20, "bytes of a CSV file", "")
+"""Checked from the file's size before it is read."""
 
 RECORD_BYTES = Limit(1 << 20, "bytes of a model record (.json)", "")
 """A written record is a few kilobytes."""
@@ -119,6 +120,27 @@ def require_count(value, name: str, low: int, high: int | Limit | None = None) -
     if number < low or (top is not None and number > top):
         raise ValueError(f"{name}: expected {span}, got {number}")
     return number
+
+
+def check_csv(path, line: int | None = None) -> None:
+    """Refuse a CSV file over :data:`CSV_BYTES` (from its size, before reading) or, given the
+    line being read, one past :data:`CSV_ROWS`.
+
+    Arguments:
+        path: the file (a path; for the size and the message).
+        line: the line number being read (``None``: check the size only).
+
+    Raises:
+        ValueError: past either limit, naming the file.
+    """
+    import os
+
+    if line is None:
+        size = os.stat(path).st_size
+        if size > CSV_BYTES.value:
+            raise ValueError(f"{path}: {size:,} bytes is over {describe(CSV_BYTES)}")
+    elif line > CSV_ROWS.value + 1:  # the header is line 1
+        raise ValueError(f"{path}: line {line} is past {describe(CSV_ROWS)}")
 
 
 def check_value(value: float, limit: Limit, argument: str, *, low: float = 0.0) -> float:
@@ -208,6 +230,7 @@ __all__ = [
     "TABLE",
     "VALUE",
     "Limit",
+    "check_csv",
     "check_magnitudes",
     "check_value",
     "describe",
