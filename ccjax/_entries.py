@@ -125,7 +125,9 @@ def read_entry(
         expect: when given, exactly these arrays, of these kinds, shapes and ranges.
 
     Returns:
-        ``(skeleton, arrays)``, or None when ``path`` does not exist.
+        ``(skeleton, arrays)``, or None when ``path`` does not exist or holds an entry of the
+        layout before this schema (``{"format": 1, ...}`` without ``"schema"``), which the caller
+        replaces without a warning.
 
     Raises:
         Rejected: the entry exists but does not verify.
@@ -144,6 +146,8 @@ def read_entry(
         raise Rejected("the record is not JSON") from None
     except ValueError as error:  # not UTF-8, or nested past the limit
         raise Rejected(f"the record: {error}") from None
+    if isinstance(record, dict) and "schema" not in record and record.get("format") == 1:
+        return None  # an entry of the layout before schema 1 (ccjax 0.2): not damaged, replaced
     if not isinstance(record, dict) or set(_RECORD) - set(record):
         raise Rejected("the record lacks schema, kind, key, digest or skeleton")
     if record["schema"] != SCHEMA:

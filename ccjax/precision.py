@@ -194,20 +194,21 @@ def linear(layer: eqx.nn.Linear, x: Float[Array, " n_in"]) -> Float[Array, " n_o
 
 
 def scale_down(x: Float[ArrayLike, "..."], largest: Float[ArrayLike, "..."]) -> Float[Array, "..."]:
-    """``x`` divided by the power of two ``2^e`` of ``largest = m 2^e`` (``m`` in ``[0.5, 1)``;
-    a zero ``largest`` leaves ``x`` as it is), so that ``largest`` maps into ``[0.5, 1)`` exactly.
+    """``x / largest`` computed so that it is right at any float32 scale (a zero ``largest``
+    leaves ``x`` as it is).
 
-    Dividing by ``largest`` itself is compiled as a product with its reciprocal, which for
+    Dividing by ``largest`` directly is compiled as a product with its reciprocal, which for
     ``largest`` above about 8.5e37 is a subnormal number that devices flush to zero: every value
-    came out 0 (an angle of 0 between ``[1e38, 0, 0]`` and ``[0, 1e38, 0]``). A power of two
-    shifts the exponent instead (``ldexp``), exact at any scale.
+    came out 0 (an angle of 0 between ``[1e38, 0, 0]`` and ``[0, 1e38, 0]``). Here the exponent
+    ``e`` of ``largest = m 2^e`` is shifted out first (``ldexp``, exact), then the mantissa
+    ``m`` in ``[0.5, 1)`` divided, whose reciprocal is in ``(1, 2]``.
 
     Arguments:
         x: the values.
         largest: their scale, broadcast against ``x`` (held out of the gradient).
 
     Returns:
-        ``x * 2^-e``.
+        ``x / largest``.
     """
-    _, exponent = jnp.frexp(jax.lax.stop_gradient(jnp.asarray(largest)))
-    return jnp.ldexp(jnp.asarray(x), -exponent)
+    mantissa, exponent = jnp.frexp(jax.lax.stop_gradient(jnp.asarray(largest)))
+    return jnp.ldexp(jnp.asarray(x), -exponent) / jnp.where(mantissa != 0, mantissa, 1.0)
