@@ -279,7 +279,11 @@ class GreyEdge(AbstractImageEstimator, AbstractUnblockedEstimator):
 
     def __check_init__(self):
         # Also run on a model read from a file (ccjax._cache.load_model): its p is the file's.
-        if not isinstance(self.p, jax.core.Tracer) and not bool(jnp.asarray(self.p) >= 1):
+        try:
+            below = not bool(jnp.asarray(self.p) >= 1)  # NaN too
+        except jax.errors.ConcretizationTypeError:  # traced (a learned p inside jit): not checked here
+            return
+        if below:
             raise ValueError(f"p: expected a Minkowski norm >= 1 or inf, got {float(self.p)!r}")
         if not (0 <= self.sigma <= limits.SIGMA.value):
             raise ValueError(
