@@ -117,6 +117,17 @@ def test_the_pixel_budget_not_pillows_own_limit_decides(tmp_path):
     assert (info.height, info.width) == (15000, 15000)
     with pytest.raises(ValueError, match="--max-pixels"):
         io.probe_image(tmp_path / "claim.jpg", decode_srgb=True)
+    # Within the raised budget, its few kilobytes cannot hold 225 MP: refused before decoding
+    # (libjpeg would fill the missing blocks with grey and only warn).
+    with pytest.raises(ValueError, match=r"more than its .* bytes can hold"):
+        io.read_image(tmp_path / "claim.jpg", decode_srgb=True, max_pixels=300_000_000)
+
+
+def test_a_jpeg_whose_header_claims_more_than_its_data_is_refused(tmp_path):
+    _jpeg(tmp_path / "small.jpg", size=(8, 8))
+    (tmp_path / "claim.jpg").write_bytes(_sof_patched((tmp_path / "small.jpg").read_bytes(), 10000, 10000))
+    with pytest.raises(ValueError, match=r"claims 100,000,000 pixels, more than its \d+ bytes can hold"):
+        io.read_image(tmp_path / "claim.jpg", decode_srgb=True)
 
 
 @pytest.mark.parametrize("weight", [float("nan"), float("inf"), -5.0, 1e9])

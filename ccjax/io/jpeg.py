@@ -63,6 +63,30 @@ def jpeg_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
     return (height, width) + ((channels,) if channels > 1 else ()), np.dtype(np.uint8)
 
 
+_ARITHMETIC_FRAMES = (b"\xff\xc9", b"\xff\xca", b"\xff\xcb", b"\xff\xcd", b"\xff\xce", b"\xff\xcf")
+"""Start-of-frame markers of arithmetic-coded JPEG, whose blocks may take less than a bit."""
+
+
+def _check_data_size(path: Path, pixels: int) -> None:
+    """Refuse a Huffman-coded JPEG too small for the pixels its header claims.
+
+    Each 8x8 block of the luminance carries a DC coefficient coded with at least one bit
+    (baseline and progressive alike), so a file of ``n`` bytes holds at most ``8 n`` blocks.
+    libjpeg fills the blocks a file lacks with grey and only warns: a 630-byte file claiming
+    10000 x 10000 pixels decoded (3 GB) as a flat grey image and was estimated "ok".
+    """
+    size = path.stat().st_size
+    if 8 * size >= pixels / 64:
+        return
+    blob = path.read_bytes()  # small: under a bit per block of the claimed size
+    if any(marker in blob for marker in _ARITHMETIC_FRAMES):
+        return
+    raise ValueError(
+        f"its header claims {pixels:,} pixels, more than its {size:,} bytes can hold (at least one bit per "
+        "8x8 block): the file is cut short or its header is wrong"
+    )
+
+
 def read_jpeg(path: Path) -> np.ndarray:
     """The pixels of a JPEG, upright (its EXIF orientation applied).
 
@@ -73,9 +97,10 @@ def read_jpeg(path: Path) -> np.ndarray:
         ``(H, W, 3)`` (or ``(H, W)`` grey) ``uint8`` codes.
 
     Raises:
-        ValueError: the data ends early or does not decode.
+        ValueError: the data ends early, is too small for the claimed size, or does not decode.
     """
     with _opened(path) as image:
+        _check_data_size(path, image.size[0] * image.size[1])
         orientation = _orientation(image)
         try:
             image.load()
