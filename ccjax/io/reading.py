@@ -45,6 +45,7 @@ import numpy as np
 from ccjax import limits
 from ccjax.io.jpeg import jpeg_layout, read_jpeg
 from ccjax.io.png import png_encoding, png_header, read_png
+from ccjax.io.srgb import decode_srgb_codes
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
 JPEG_SUFFIXES = (".jpg", ".jpeg")
@@ -389,7 +390,7 @@ def read_image(
     # One float32 copy, scaled in place: the file's codes and this copy are the only full-size arrays.
     if decode_srgb and path.suffix.lower() not in RAW_SUFFIXES:
         # Decoded on the format's scale (sRGB codes run from 0 to the maximum), before the levels.
-        rgb = _srgb_decoded(pixels, full_scale)
+        rgb = decode_srgb_codes(pixels, full_scale)
     else:
         rgb = pixels.astype(np.float32)
     del pixels
@@ -398,30 +399,6 @@ def read_image(
     np.maximum(rgb, 0.0, out=rgb)
     rgb /= np.float32(level - black_level)
     return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth, transparent=transparent)
-
-
-DECODE_ROWS = 256
-"""Rows decoded from sRGB at a time: colour-science computes in float64 with several temporaries
-(about 175 bytes per pixel for a whole image: 2.4 GB for 12 MP), so only this many rows'
-worth of them exist at once."""
-
-
-def _srgb_decoded(pixels: np.ndarray, full_scale: float) -> np.ndarray:
-    """The sRGB-encoded ``pixels`` as linear float32 on the format's scale (IEC 61966-2-1 through
-    colour-science): integer codes through a table of every code, floats by blocks of rows."""
-    import colour
-
-    out = np.empty(pixels.shape, np.float32)
-    if np.issubdtype(pixels.dtype, np.integer) and pixels.dtype.itemsize <= 2:
-        codes = np.arange(int(np.iinfo(pixels.dtype).max) + 1, dtype=np.float64)
-        table = (colour.cctf_decoding(codes / full_scale, function="sRGB") * full_scale).astype(np.float32)
-        for start in range(0, pixels.shape[0], DECODE_ROWS):
-            np.take(table, pixels[start : start + DECODE_ROWS], out=out[start : start + DECODE_ROWS])
-        return out
-    for start in range(0, pixels.shape[0], DECODE_ROWS):
-        block = pixels[start : start + DECODE_ROWS].astype(np.float64) / full_scale
-        out[start : start + DECODE_ROWS] = colour.cctf_decoding(block, function="sRGB") * full_scale
-    return out
 
 
 MASK_SUFFIXES = (".png", ".tif", ".tiff")
