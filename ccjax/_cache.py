@@ -1,7 +1,7 @@
 """The one on-disk cache: one directory rule, one content key, one serialisation.
 
-Everything ccjax keeps between runs lives under :func:`cache_directory`: cached arrays (``.npz`` +
-``.json``), fitted models and worlds (:mod:`ccjax.runs.store`, verified data-only entries), model
+Everything ccjax keeps between runs lives under :func:`cache_directory`: verified data-only entries
+(``.npz`` + ``.json``: fitted models, worlds, results, previews, renders; :mod:`ccjax._entries`), model
 files (equinox leaf serialisation + ``.json`` metadata with a format version, so model files can be
 shared between users) and JAX's persistent compilation cache (``xla/``). Nothing is pickled: a
 cache file can be read without running code from it.
@@ -9,12 +9,14 @@ cache file can be read without running code from it.
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import functools
 import hashlib
 import io
 import json
 import os
+import re
 import sys
 import tempfile
 from collections.abc import Callable, Mapping
@@ -23,8 +25,10 @@ from typing import Any, BinaryIO, TypeVar
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
+from ccjax import limits
 from ccjax._version import __version__
 
 FORMAT_VERSION = 1
@@ -172,13 +176,9 @@ def put_in_place(temporary: str | os.PathLike, path: str | os.PathLike, *, overw
         Path(temporary).unlink(missing_ok=True)
 
 
-def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], object], *, replace: bool = True) -> None:
-    """Write ``blob`` to ``path`` through a temporary file in the same folder put in place
-    (:func:`put_in_place`), so readers never see a partial file; the file gets
-    the usual permissions (umask). Without ``replace`` an existing ``path`` is kept
-    (``FileExistsError``). ``blob`` may be a function that writes to the open binary file."""
-
-    path = Path(path)
+def _write_temporary(path: Path, blob: bytes | Callable[[BinaryIO], object]) -> str:
+    """Write ``blob`` to a new temporary file in ``path``'s folder (the usual permissions, umask);
+    return its name. The temporary is removed when the write fails (a full disk names ``path``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     try:
@@ -192,79 +192,91 @@ def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], object], *, repl
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)  # mkstemp's 0600 is for the temporary name only
-        put_in_place(temporary, path, overwrite=replace)
     except BaseException as error:
         Path(temporary).unlink(missing_ok=True)
         if isinstance(error, OSError) and error.filename is None:  # a full disk: say which file
             raise OSError(error.errno, error.strerror, str(path)) from None
         raise
+    return temporary
 
 
-def cached_arrays(
-    kind: str, key: str, compute: Callable[[], Mapping[str, np.ndarray]], metadata: Mapping[str, Any] | None = None
-) -> dict[str, np.ndarray]:
-    """Load the arrays stored under (``kind``, ``key``), else ``compute()`` and store them.
+def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], object], *, replace: bool = True) -> None:
+    """Write ``blob`` to ``path`` through a temporary file in the same folder put in place
+    (:func:`put_in_place`), so readers never see a partial file; the file gets
+    the usual permissions (umask). Without ``replace`` an existing ``path`` is kept
+    (``FileExistsError``). ``blob`` may be a function that writes to the open binary file."""
+    atomic_write_files({Path(path): blob}, replace=replace)
 
-    A damaged or unreadable entry is recomputed and replaced; an unwritable cache only costs time.
+
+def atomic_write_files(files: Mapping[Path, bytes | Callable[[BinaryIO], object]], *, replace: bool = True) -> None:
+    """Write several files that belong together (a model and its record) so that they appear
+    together or not at all: every file is first written whole to a temporary (where a full disk
+    or an error stops the write, nothing has appeared), then each is put in place
+    (:func:`put_in_place`, a rename); should putting one in place fail, the ones this call put in
+    place before it are removed again.
 
     Arguments:
-        kind: sub-folder of the cache (one per kind of fitted data).
-        key: :func:`content_key` of everything the arrays depend on.
-        compute: builds the arrays (called only on a miss).
-        metadata: JSON-able facts written beside the arrays (for people reading the cache).
+        files: path -> bytes, or a function that writes to the open binary file; put in place in
+            this order (put the file a reader opens last, e.g. the model after its record).
+        replace: replace existing files (else ``FileExistsError`` naming the first that exists,
+            before anything is written).
 
     Returns:
-        The arrays by name.
+        None.
     """
-    stored = read_arrays(kind, key)
-    if stored is not None:
-        return stored
-    arrays = {name: np.asarray(value) for name, value in compute().items()}
-    write_arrays(kind, key, arrays, metadata)
-    return arrays
+    paths = [Path(path) for path in files]
+    if not replace and len(paths) > 1:  # (one file: put_in_place refuses it without a race)
+        for path in paths:
+            if os.path.lexists(path):
+                raise FileExistsError(errno.EEXIST, "exists (use --overwrite to replace it)", str(path))
+    temporaries: list[str] = []
+    placed: list[Path] = []
+    try:
+        for path, blob in zip(paths, files.values(), strict=True):
+            temporaries.append(_write_temporary(path, blob))
+        for path, temporary in zip(paths, temporaries, strict=True):
+            put_in_place(temporary, path, overwrite=replace)
+            placed.append(path)
+    except BaseException:
+        if len(paths) > 1 and not replace:
+            for path in placed:  # new files of this call only: replaced ones cannot come back
+                path.unlink(missing_ok=True)
+        raise
+    finally:
+        for temporary in temporaries:
+            Path(temporary).unlink(missing_ok=True)
 
 
-def read_arrays(kind: str, key: str) -> dict[str, np.ndarray] | None:
-    """The arrays stored under (``kind``, ``key``), or None when absent, damaged or unreadable.
+def parse_record(text: str | bytes) -> Any:
+    """A JSON record, parsed with its nesting bounded (:data:`ccjax.limits.NESTING`): a record
+    nested 100,000 deep is a ``ValueError``, not Python's ``RecursionError``.
 
     Arguments:
-        kind: sub-folder of the cache.
-        key: :func:`content_key` of everything the arrays depend on.
+        text: the JSON text.
 
     Returns:
-        The arrays by name, or None.
+        The parsed value.
+
+    Raises:
+        ValueError: not JSON, or nested deeper than the limit.
     """
-    path = cache_directory() / kind / f"{key}.npz"
-    if not path.is_file():
-        return None
-    try:
-        with np.load(path, allow_pickle=False) as stored:
-            return {name: stored[name] for name in stored.files}
-    except (OSError, ValueError, EOFError):
-        return None
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", errors="strict")
+    depth = _nesting(text)
+    if depth > limits.NESTING.value:
+        raise ValueError(f"nested {depth} deep, over the limit of {limits.NESTING.value}")
+    return json.loads(text)
 
 
-def write_arrays(
-    kind: str, key: str, arrays: Mapping[str, np.ndarray], metadata: Mapping[str, Any] | None = None
-) -> None:
-    """Store ``arrays`` under (``kind``, ``key``) with a JSON record of ``metadata`` beside them;
-    an unwritable cache is ignored (it only costs time).
-
-    Arguments:
-        kind: sub-folder of the cache.
-        key: :func:`content_key` of everything the arrays depend on.
-        arrays: the arrays by name.
-        metadata: JSON-able facts written beside the arrays (for people reading the cache).
-    """
-    path = cache_directory() / kind / f"{key}.npz"
-    try:
-        buffer = io.BytesIO()
-        np.savez(buffer, **{name: np.asarray(value) for name, value in arrays.items()})  # pyright: ignore[reportArgumentType]
-        atomic_write(path, buffer.getvalue())
-        record = {"format": FORMAT_VERSION, "kind": kind, **(metadata or {})}
-        atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode())
-    except OSError:
-        pass
+def _nesting(text: str) -> int:
+    """The deepest nesting of ``[``/``{`` in JSON text, outside strings (one pass, no recursion)."""
+    # Strings are removed first (escaped quotes included), so brackets inside them do not count.
+    bare = re.sub(r'"(?:[^"\\]|\\.)*"', "", text)
+    depth = deepest = 0
+    for match in re.finditer(r"[\[\]{}]", bare):
+        depth += 1 if match.group() in "[{" else -1
+        deepest = max(deepest, depth)
+    return deepest
 
 
 def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any], *, replace: bool = True) -> Path:
@@ -283,14 +295,16 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any], *, re
     path = Path(path)
     buffer = io.BytesIO()
     eqx.tree_serialise_leaves(buffer, model)
-    atomic_write(path, buffer.getvalue(), replace=replace)
     record = {"format": FORMAT_VERSION, "ccjax": __version__, **metadata}
-    atomic_write(path.with_suffix(".json"), json.dumps(record, indent=1, default=str).encode(), replace=replace)
+    text = json.dumps(record, indent=1, default=str).encode()
+    # One pair: both written whole before either appears; the model last (readers open the
+    # record first, and a model without its record cannot be loaded).
+    atomic_write_files({path.with_suffix(".json"): text, path: buffer.getvalue()}, replace=replace)
     return path
 
 
-MAX_RECORD_BYTES = 1 << 20
-"""Largest model record read (a written one is a few kilobytes)."""
+MAX_RECORD_BYTES = int(limits.RECORD_BYTES.value)
+"""Largest model record read (a written one is a few kilobytes): :data:`ccjax.limits.RECORD_BYTES`."""
 
 
 def read_model_metadata(path: Path) -> dict[str, Any]:
@@ -300,7 +314,7 @@ def read_model_metadata(path: Path) -> dict[str, Any]:
     try:
         if not record_path.is_file() or record_path.stat().st_size > MAX_RECORD_BYTES:
             raise ValueError(f"not a regular file of at most {MAX_RECORD_BYTES} bytes")
-        record = json.loads(record_path.read_text())
+        record = parse_record(record_path.read_bytes())
     except (OSError, ValueError) as error:
         raise ValueError(f"model: cannot read the metadata {record_path}: {error}") from None
     if not isinstance(record, dict):
@@ -323,6 +337,33 @@ def load_model(path: Path, like: ModelT) -> ModelT:
     """
     read_model_metadata(path)
     try:
-        return eqx.tree_deserialise_leaves(path, like)
+        model = eqx.tree_deserialise_leaves(path, like)
     except (OSError, ValueError, RuntimeError) as error:
         raise ValueError(f"model: {path} does not fit a {type(like).__name__}: {error}") from None
+    for leaf in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array)):
+        if jnp.issubdtype(leaf.dtype, jnp.inexact) and not bool(jnp.all(jnp.isfinite(leaf))):
+            raise ValueError(f"model: {path} holds non-finite values")
+    try:
+        _check_modules(model)
+    except ValueError as error:
+        raise ValueError(f"model: {path}: {error}") from None
+    return model
+
+
+def _check_modules(tree: Any) -> None:
+    """Run equinox's ``__check_init__`` of every Module in ``tree`` again: deserialised leaves
+    never went through a constructor, and a file's leaves must meet the class's own checks."""
+    if isinstance(tree, eqx.Module):
+        for cls in type(tree).__mro__:
+            check = cls.__dict__.get("__check_init__")
+            if check is not None:
+                check(tree)
+    if isinstance(tree, eqx.Module) or (dataclasses.is_dataclass(tree) and not isinstance(tree, type)):
+        for field in dataclasses.fields(tree):
+            _check_modules(getattr(tree, field.name, None))
+    elif isinstance(tree, (list, tuple)):
+        for item in tree:
+            _check_modules(item)
+    elif isinstance(tree, dict):
+        for item in tree.values():
+            _check_modules(item)

@@ -7,7 +7,6 @@ batches directly and inside ``jit``/``vmap``/``grad``. Gradients are safe at zer
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
@@ -17,6 +16,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from ccjax._colour import TINY as _TINY
 from ccjax._colour import rg as rg
 from ccjax._colour import rg_to_rgb as rg_to_rgb
+from ccjax.precision import scale_down
 
 
 def _safe_norm(x: Float[Array, "... n"]) -> Float[Array, "..."]:
@@ -29,8 +29,7 @@ def _unit_scale(x: Float[Array, "... n"]) -> Float[Array, "... n"]:
     """``x`` divided by its largest ``|component|`` (zero vectors stay zero), so that products of
     components neither underflow nor overflow whatever the scale the caller uses. The scale is
     held out of the gradient: every measure it serves depends on direction only."""
-    largest = jax.lax.stop_gradient(jnp.max(jnp.abs(x), axis=-1, keepdims=True))
-    return x / jnp.where(largest > 0, largest, 1.0)
+    return scale_down(x, jnp.max(jnp.abs(x), axis=-1, keepdims=True))
 
 
 def angular_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:

@@ -48,6 +48,7 @@ __all__ = [
     "linear",
     "low_precision_products",
     "matmul",
+    "scale_down",
 ]
 
 HIGHEST = lax.Precision.HIGHEST
@@ -190,3 +191,24 @@ def linear(layer: eqx.nn.Linear, x: Float[Array, " n_in"]) -> Float[Array, " n_o
     """
     y = matmul(layer.weight, x)
     return y if layer.bias is None else y + layer.bias
+
+
+def scale_down(x: Float[ArrayLike, "..."], largest: Float[ArrayLike, "..."]) -> Float[Array, "..."]:
+    """``x / largest`` computed so that it is right at any float32 scale (a zero ``largest``
+    leaves ``x`` as it is).
+
+    Dividing by ``largest`` directly is compiled as a product with its reciprocal, which for
+    ``largest`` above about 8.5e37 is a subnormal number that devices flush to zero: every value
+    came out 0 (an angle of 0 between ``[1e38, 0, 0]`` and ``[0, 1e38, 0]``). Here the exponent
+    ``e`` of ``largest = m 2^e`` is shifted out first (``ldexp``, exact), then the mantissa
+    ``m`` in ``[0.5, 1)`` divided, whose reciprocal is in ``(1, 2]``.
+
+    Arguments:
+        x: the values.
+        largest: their scale, broadcast against ``x`` (held out of the gradient).
+
+    Returns:
+        ``x / largest``.
+    """
+    mantissa, exponent = jnp.frexp(jax.lax.stop_gradient(jnp.asarray(largest)))
+    return jnp.ldexp(jnp.asarray(x), -exponent) / jnp.where(mantissa != 0, mantissa, 1.0)

@@ -5,7 +5,9 @@ not a fresh interpreter importing JAX.
 
 Protocol (one JSON object per line): the test writes ``{"argv": [...], "cwd": ..., "stdout": ...,
 "stderr": ...}``; the server answers ``{"pid": PID}`` at once and ``{"pid": PID, "status": CODE}``
-when the child has ended (``CODE`` is the exit code, or minus the signal that killed it).
+when the child has ended (``CODE`` is the exit code, or minus the signal that killed it), with
+``"maxrss_kb"``: the child's peak resident memory from ``os.wait4`` (on Linux it counts the
+pages it shares with the server too, so it is an upper bound of what the command alone needs).
 
 Run as ``python fork_server.py``; it stops at the end of its input.
 """
@@ -66,9 +68,9 @@ def serve() -> None:
         if pid == 0:
             child(request)
         print(json.dumps({"pid": pid}), flush=True)
-        _, status = os.waitpid(pid, 0)
+        _, status, usage = os.wait4(pid, 0)
         code = os.waitstatus_to_exitcode(status)
-        print(json.dumps({"pid": pid, "status": code}), flush=True)
+        print(json.dumps({"pid": pid, "status": code, "maxrss_kb": usage.ru_maxrss}), flush=True)
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ccjax import limits
 from ccjax.spectra import N_WAVELENGTHS, WAVELENGTHS
 
 MIN_ROWS = 12
@@ -75,8 +76,10 @@ def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -
     path = os.fspath(path)
     rows: list[list[float]] = []
     lines: list[int] = []
+    limits.check_csv(path)
     with open(path, newline="") as f:
         for line_number, fields in enumerate(csv.reader(f), start=1):
+            limits.check_csv(path, line_number)
             if not fields or not "".join(fields).strip() or fields[0].lstrip().startswith("#"):
                 continue
             fields = [field.strip() for field in fields]

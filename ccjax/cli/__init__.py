@@ -176,7 +176,8 @@ def import_holding_interrupts(*names: str) -> None:
 
 def one_line_warnings(command: str | None, original: Callable[..., str]) -> Callable[..., str]:
     """A ``warnings.formatwarning`` that writes ccjax's own warnings (e.g. a rejected cache entry)
-    as one line, ``ccjax <command>: warning: <message>``, and others as ``original`` does.
+    as one line, ``ccjax <command>: warning: <message>``, JAX's compilation-cache failures (a
+    full disk) as one such line for the whole run, and others as ``original`` does.
 
     Arguments:
         command: the sub-command (for the prefix).
@@ -186,9 +187,24 @@ def one_line_warnings(command: str | None, original: Callable[..., str]) -> Call
         The format function.
     """
 
+    said: set[str] = set()
+
     def format_warning(message, category, filename, lineno, line=None) -> str:
         if category.__module__.startswith("ccjax."):
             return f"{prefix(command)}: warning: {message}\n"
+        text = str(message)
+        for action, verb in (("reading", "read"), ("writing", "write")):
+            # JAX warns once per program when its compilation cache fails (a full disk): say it
+            # once, in ccjax's words; the run goes on compiling without the cache.
+            if text.startswith(f"Error {action} persistent compilation cache entry"):
+                if action in said:
+                    return ""
+                said.add(action)
+                reason = text.split("': ", 1)[-1]
+                return (
+                    f"{prefix(command)}: warning: cannot {verb} "
+                    f"the compilation cache ({reason}); programs are compiled without it\n"
+                )
         return original(message, category, filename, lineno, line)
 
     return format_warning

@@ -6,7 +6,7 @@ import sys
 import time
 
 from ccjax.cli.common import check_outputs as check_files
-from ccjax.cli.common import check_plot, int_list, overwrite_argument, write, write_plot
+from ccjax.cli.common import check_plot, int_list, overwrite_argument, seed, write, write_plot
 
 
 def add_calibrate(sub) -> None:
@@ -40,7 +40,7 @@ def add_calibrate(sub) -> None:
     )
     p.add_argument(
         "--seed",
-        type=int,
+        type=seed,
         default=0,
         help="seed of the synthetic data, the held-out split and the subsets",
     )

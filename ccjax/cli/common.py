@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
+
+from ccjax import limits
 
 
 def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -> None:
@@ -27,7 +29,7 @@ def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -
         default=None,
         help="external data directory (else $CCJAX_DATA, else ../shared/data)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the illuminant sets and scenes")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the illuminant sets and scenes")
 
 
 def pretrain_arguments(parser: argparse.ArgumentParser) -> None:
@@ -135,8 +137,65 @@ def int_list(text: str) -> list[int]:
 
 
 def label_list(text: str) -> list[str]:
-    """``"GW, RETINEX"`` -> ``["GW", "RETINEX"]`` (an argparse type)."""
-    return [part.strip() for part in text.split(",") if part.strip()]
+    """``"GW, RETINEX"`` -> ``["GW", "RETINEX"]`` (an argparse type; an empty list is refused,
+    never read as "the default set")."""
+    labels = [part.strip() for part in text.split(",") if part.strip()]
+    if not labels:
+        raise argparse.ArgumentTypeError(f"expected comma-separated labels, got {text!r}")
+    return labels
+
+
+def count_within(limit: limits.Limit, low: int = 1) -> Callable[[str], int]:
+    """An argparse type: an integer in ``[low, limit]`` (``1e6`` spelled as a float is accepted);
+    past the limit the message names it and the option.
+
+    Arguments:
+        limit: the bound (:mod:`ccjax.limits`).
+        low: the smallest accepted value.
+
+    Returns:
+        The type function.
+    """
+
+    def parse(text: str) -> int:
+        try:
+            value = float(text) if any(c in text.lower() for c in ".e") else int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if isinstance(value, float) and not value.is_integer():
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}")
+        try:
+            return limits.require_count(int(value), "value", low, limit)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error).removeprefix("value: ")) from None
+
+    parse.__name__ = "integer"  # argparse names the type in its own messages
+    return parse
+
+
+def number_within(limit: limits.Limit, low: float = 0.0) -> Callable[[str], float]:
+    """An argparse type: a finite number in ``[low, limit]``.
+
+    Arguments:
+        limit: the bound (:mod:`ccjax.limits`).
+        low: the smallest accepted value.
+
+    Returns:
+        The type function.
+    """
+
+    def parse(text: str) -> float:
+        try:
+            return limits.check_value(float(text), limit, "value", low=low)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error).removeprefix("value: ")) from None
+
+    parse.__name__ = "number"
+    return parse
+
+
+seed = count_within(limits.SEED, low=0)
+"""The argparse type of ``--seed``: an integer in ``[0, 2^32 - 1]`` (:data:`ccjax.limits.SEED`)."""
 
 
 def overwrite_argument(parser: argparse.ArgumentParser, what: str = "output files") -> None:

@@ -6,7 +6,8 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import check_outputs, label_list, overwrite_argument, world_arguments, write
+from ccjax import limits
+from ccjax.cli.common import check_outputs, count_within, label_list, overwrite_argument, world_arguments, write
 from ccjax.cli.image_options import check_labels, image_world
 
 DEFAULT_INDEXING_METHODS = [
@@ -53,7 +54,7 @@ def add_indexing(sub) -> None:
     )
     p.add_argument(
         "--objects",
-        type=int,
+        type=count_within(limits.OBJECTS),
         default=50,
         help="objects in the database (default: %(default)s)",
     )

@@ -6,7 +6,17 @@ import json
 import sys
 import time
 
-from ccjax.cli.common import build_world, check_outputs, check_plot, overwrite_argument, world_arguments, write_plot
+from ccjax import limits
+from ccjax.cli.common import (
+    build_world,
+    check_outputs,
+    check_plot,
+    count_within,
+    number_within,
+    overwrite_argument,
+    world_arguments,
+    write_plot,
+)
 
 
 def add_sharpen(sub) -> None:
@@ -34,7 +44,7 @@ def add_sharpen(sub) -> None:
     )
     p.add_argument(
         "--lambda-p",
-        type=float,
+        type=number_within(limits.SHARPENING_PENALTY),
         default=None,
         help="positivity weight for --method new (default: the smallest leaving < 0.1%% negative training responses)",
     )
@@ -53,7 +63,7 @@ def add_sharpen(sub) -> None:
     )
     p.add_argument(
         "--scenes",
-        type=int,
+        type=count_within(limits.SCENES),
         default=1000,
         help="test scenes for --rank-cameras (default: %(default)s)",
     )

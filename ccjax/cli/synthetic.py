@@ -5,14 +5,17 @@ from __future__ import annotations
 import sys
 import time
 
+from ccjax import limits
 from ccjax.cli.common import (
     build_world,
     check_outputs,
     check_plot,
+    count_within,
     int_list,
     item_mesh_if_distributed,
     label_list,
     overwrite_argument,
+    seed,
     start_processes,
     table_stream,
     world_arguments,
@@ -68,7 +71,7 @@ def add_compare(sub) -> None:
     )
     p.add_argument(
         "--scenes",
-        type=int,
+        type=count_within(limits.SCENES),
         default=1000,
         help="scenes per surface count (default: %(default)s)",
     )
@@ -229,7 +232,7 @@ def add_reproduce(sub) -> None:
     )
     p.add_argument(
         "--scenes",
-        type=int,
+        type=count_within(limits.SCENES),
         default=1000,
         help="scenes per condition (default: %(default)s)",
     )
@@ -238,7 +241,7 @@ def add_reproduce(sub) -> None:
         default=None,
         help="external data directory (else $CCJAX_DATA, else ../shared/data)",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run_reproduce)

@@ -17,6 +17,8 @@ import numpy as np
 from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
+from ccjax import limits
+
 KINDS = ("surfaces", "image")
 """The input kinds of estimators (``AbstractEstimator.input_kind``)."""
 
@@ -368,6 +370,8 @@ def _checked_values(x, name: str, shapes: tuple[str, str], ndims: tuple[int, int
         raise ValueError(f"{name}: contains NaN or infinite values")
     if np.any(array < 0):
         raise ValueError(f"{name}: contains negative values (linear camera RGB is non-negative)")
+    if array.size and array.max() > limits.VALUE.value:
+        raise ValueError(f"{name}: {array.max():g} is over the limit of {limits.VALUE.value:g} ({limits.VALUE.what})")
     return array
 
 

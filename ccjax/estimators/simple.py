@@ -26,6 +26,7 @@ from ccjax.estimators.base import (
     with_fallback,
 )
 from ccjax.estimators.registry import register
+from ccjax.precision import scale_down
 from ccjax.world import World
 
 
@@ -112,17 +113,20 @@ class ShadesOfGrey(AbstractStatisticsSurfaceEstimator):
         # reciprocal is finite).
         smallest = jnp.finfo(peak.dtype).tiny
         usable = (count > 0) & (jnp.max(peak) > smallest)
-        inverse_peak = 1.0 / jnp.where(peak > smallest, peak, 1.0)
+        # Not times the peak's reciprocal: that of a peak above ~8.5e37 is subnormal and flushed
+        # to zero on devices (every estimate came out 0); scale_down divides exactly.
+        scale = jnp.where(peak > smallest, peak, 1.0)
         # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
         exponent = int(self.p) if float(self.p).is_integer() else self.p
-        total = pairwise_reduce((masked * inverse_peak) ** exponent, jnp.add)
+        total = pairwise_reduce(scale_down(masked, scale) ** exponent, jnp.add)
         mean = total / jnp.maximum(count, 1).astype(total.dtype)
         positive = mean > 0
         root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
         # The normalised mean lies in (0, 1], so the estimate is finite wherever ``usable``: no
         # need for with_fallback's finiteness checks, which make XLA re-evaluate the p-th root in
         # each of their fusions (measured 2x slower at 8 surfaces).
-        illuminant = jnp.where(usable, 2.0 * root / inverse_peak, self.fallback)
+        mantissa, shift = jnp.frexp(jax.lax.stop_gradient(scale))  # x / s * s: s is a constant
+        illuminant = jnp.where(usable, 2.0 * jnp.ldexp(root * mantissa, shift), self.fallback)
         return Estimate(illuminant=illuminant, ok=usable)
 
 

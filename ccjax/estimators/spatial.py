@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
+from ccjax import limits
 from ccjax.estimators.base import AbstractImageEstimator, AbstractUnblockedEstimator, Estimate, with_fallback
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
@@ -276,6 +277,19 @@ class GreyEdge(AbstractImageEstimator, AbstractUnblockedEstimator):
     default_preprocessing: ClassVar[str] = "pixels"
     pools_pixels: ClassVar[bool] = False
 
+    def __check_init__(self):
+        # Also run on a model read from a file (ccjax._cache.load_model): its p is the file's.
+        try:
+            below = not bool(jnp.asarray(self.p) >= 1)  # NaN too
+        except jax.errors.ConcretizationTypeError:  # traced (a learned p inside jit): not checked here
+            return
+        if below:
+            raise ValueError(f"p: expected a Minkowski norm >= 1 or inf, got {float(self.p)!r}")
+        if not (0 <= self.sigma <= limits.SIGMA.value):
+            raise ValueError(
+                f"sigma: {self.sigma!r} is outside [0, {limits.SIGMA.value:g}] ({limits.describe(limits.SIGMA)})"
+            )
+
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
         if image.ndim != 3 or image.shape[-1] != 3 or mask.shape != image.shape[:2]:
             raise ValueError(
@@ -310,6 +324,8 @@ def fit_grey_edge(world: World, order: int = 1, p: float = 6.0, sigma: float = 2
         raise ValueError(f"p: expected a Minkowski norm >= 1 or inf, got {p!r}")
     if not (sigma >= 0 and math.isfinite(sigma)):
         raise ValueError(f"sigma: expected a finite scale >= 0, got {sigma!r}")
+    if sigma > limits.SIGMA.value:
+        raise ValueError(f"sigma: {sigma:g} is over {limits.describe(limits.SIGMA)}")
     fallback = average_illuminant(world)
     return GreyEdge(p=jnp.asarray(p, fallback.dtype), fallback=fallback, order=int(order), sigma=float(sigma))
 

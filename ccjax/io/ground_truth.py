@@ -22,6 +22,7 @@ from pathlib import Path, PurePath
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ccjax import limits
 from ccjax.io.files import write_file
 from ccjax.io.reading import list_images
 
@@ -75,6 +76,10 @@ def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) 
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"ground truth: no such file: {path}")
+    try:
+        limits.check_csv(path)
+    except ValueError as error:
+        raise ValueError(f"ground truth: {error}") from None
     truth: dict[str, np.ndarray] = {}
     folds: dict[str, int] = {}
     lines: dict[str, int] = {}
@@ -94,6 +99,10 @@ def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) 
         try:
             for row in reader:
                 line = reader.line_num
+                try:
+                    limits.check_csv(path, line)
+                except ValueError as error:
+                    raise ValueError(f"ground truth: {error}") from None
                 if None in row:
                     raise ValueError(
                         f"ground truth: {path} line {line}: {len(fieldnames) + len(row[None])} fields, "
@@ -109,6 +118,7 @@ def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) 
                     raise ValueError(
                         f"ground truth: {path} line {line}: r,g,b must be finite, non-negative, not all zero"
                     )
+                limits.check_magnitudes(rgb, f"ground truth: {path} line {line}: r,g,b")
                 name = row["image"].strip()
                 _check_name(path, line, name)
                 if name in truth:

@@ -13,7 +13,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ccjax._cache import cached_arrays, content_key
+from ccjax._cache import content_key
+from ccjax._entries import Expect, cached_arrays
 from ccjax.io.png import write_png
 from ccjax.io.writing import row_slices
 
@@ -64,7 +65,10 @@ def preview_matrix_cached(world) -> np.ndarray:
         The ``(3, 3)`` camera-to-linear-sRGB matrix of :func:`preview_matrix`.
     """
     key = content_key("preview", PREVIEW_METHOD, world)
-    return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, {"world": world.name})["matrix"]
+    # The rows of a camera-to-sRGB matrix are of order one; one far out is not a preview matrix.
+    layout = {"matrix": Expect((3, 3), "f", -1e3, 1e3)}
+    facts = {"world": world.name, "method": PREVIEW_METHOD}
+    return cached_arrays("preview", key, lambda: {"matrix": preview_matrix(world)}, layout, facts)["matrix"]
 
 
 def encode_srgb(linear: ArrayLike, bits: int = 8) -> np.ndarray:

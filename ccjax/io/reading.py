@@ -43,7 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ccjax import limits
+from ccjax.io.jpeg import jpeg_layout, read_jpeg
 from ccjax.io.png import png_encoding, png_header, read_png
+from ccjax.io.srgb import decode_srgb_codes
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
 JPEG_SUFFIXES = (".jpg", ".jpeg")
@@ -52,10 +55,11 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *JPEG_SUFFIXES, *RAW_SUFFIXES)
 CLIP_FRACTION = 0.98
 """Default clip level as a fraction of the saturation level (module docstring)."""
 
-MAX_PIXELS = 100_000_000
-"""Default pixel budget of :func:`probe_image` and :func:`read_image` (100 MP): a 48 MP camera
-image passes, a file whose header claims more is refused before anything is allocated for it (a
-74-byte PNG can claim 100000 x 100000 pixels; decoding it would need 60 GB)."""
+MAX_PIXELS = int(limits.PIXELS.value)
+"""Default pixel budget (:data:`ccjax.limits.PIXELS`) of :func:`probe_image` and
+:func:`read_image` (100 MP): a 48 MP camera image passes, a file whose header claims more is
+refused before anything is allocated for it (a 74-byte PNG can claim 100000 x 100000 pixels;
+decoding it would need 60 GB)."""
 
 
 @dataclass(frozen=True)
@@ -145,25 +149,8 @@ def _read_pixels(path: Path) -> np.ndarray:
             pixels = np.moveaxis(pixels, 0, -1)  # planar (separate) configuration
         return pixels
     if suffix in JPEG_SUFFIXES:
-        import imagecodecs
-
-        return np.asarray(imagecodecs.jpeg8_decode(path.read_bytes()))
+        return read_jpeg(path)
     raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
-
-
-def _jpeg_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
-    """Shape and sample type of a JPEG from its header: imagecodecs decodes JPEG only whole, and
-    Pillow's open reads the header alone (its modes of baseline JPEG are 8-bit)."""
-    from PIL import Image
-
-    with Image.open(path) as image:
-        if image.format != "JPEG":
-            raise ValueError(f"not a JPEG file ({image.format})")
-        width, height = image.size
-        channels = {"L": 1, "RGB": 3}.get(image.mode)
-    if channels is None:
-        raise ValueError(f"JPEG colour mode {image.mode} is not supported; expected RGB")
-    return (height, width) + ((channels,) if channels > 1 else ()), np.dtype(np.uint8)
 
 
 def _check_layout(
@@ -200,7 +187,7 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
         with tifffile.TiffFile(path) as tif:
             return _tiff_layout(tif)
     if suffix in JPEG_SUFFIXES:
-        return _jpeg_layout(path)
+        return jpeg_layout(path)
     if suffix in RAW_SUFFIXES:
         with _rawpy(path).imread(str(path)) as raw:
             sizes = raw.sizes
@@ -211,9 +198,12 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
 def _check_file(path: Path, kind: str) -> None:
     """Refuse a path that is not a regular file (missing, a folder, a device such as /dev/zero)."""
     if not path.exists():
+        if path.is_symlink():
+            raise ValueError(f"{kind}: {path} is a symbolic link to nothing (dangling, or a loop)")
         raise FileNotFoundError(f"{kind}: no such file: {path}")
     if not path.is_file():
-        raise ValueError(f"{kind}: {path} is not a regular file")
+        what = "a folder" if path.is_dir() else "not a regular file (a FIFO, socket or device)"
+        raise ValueError(f"{kind}: {path} is {what}")
 
 
 def check_pixels(path: str | os.PathLike, height: int, width: int, max_pixels: int | None) -> None:
@@ -399,13 +389,12 @@ def read_image(
             + (", or transparent)" if transparent is not None else ")")
         )
     # One float32 copy, scaled in place: the file's codes and this copy are the only full-size arrays.
-    rgb = pixels.astype(np.float32)
-    del pixels
     if decode_srgb and path.suffix.lower() not in RAW_SUFFIXES:
-        import colour
-
         # Decoded on the format's scale (sRGB codes run from 0 to the maximum), before the levels.
-        rgb = (colour.cctf_decoding(rgb / np.float32(full_scale), function="sRGB") * full_scale).astype(np.float32)
+        rgb = decode_srgb_codes(pixels, full_scale)
+    else:
+        rgb = pixels.astype(np.float32)
+    del pixels
     if black_level:
         rgb -= np.float32(black_level)
     np.maximum(rgb, 0.0, out=rgb)
@@ -469,7 +458,8 @@ def read_mask(path: str | os.PathLike, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
-    """Expand files and folders (a folder gives its image files, sorted, not recursive).
+    """Expand files and folders (a folder gives its entries named as images, sorted, not
+    recursive; entries that are not regular files are kept, for the reader to refuse by name).
 
     Arguments:
         paths: files and folders.
@@ -480,7 +470,10 @@ def list_images(paths: Iterable[str | os.PathLike]) -> list[Path]:
     found: list[Path] = []
     for item in map(Path, paths):
         if item.is_dir():
-            found += sorted(p for p in item.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+            # Every entry named as an image, regular file or not: a dangling or looping link, a
+            # FIFO or a folder named ``*.png`` is the reader's to refuse (a failure the run
+            # reports), never dropped without a word.
+            found += sorted(p for p in item.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         else:
             found.append(item)
     return found

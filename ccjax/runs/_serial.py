@@ -1,7 +1,7 @@
-"""The store's files: data only, verified before use.
+"""Models and worlds as the store's data-only entries (:mod:`ccjax._entries`, the one verified
+read path of the cache).
 
-An entry is ``<key>.json`` (a record: schema, kind, key, content digest, facts for people and, for
-models, the skeleton) and ``<key>.npz`` (the arrays, read without pickle). A model's skeleton names
+A model's skeleton names
 its classes as ``"module:qualname"``; they are looked up in an allow-list (a dict given by the
 caller), never imported, and are rebuilt field by field without running their ``__init__``. The
 digest is the sha256 of the skeleton's canonical JSON and of every array's name, dtype, shape and
@@ -12,11 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import hashlib
-import io
-import json
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import equinox as eqx
@@ -24,13 +20,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ccjax._cache import atomic_write
+from ccjax._entries import Rejected, digest, read_entry, write_entry
 from ccjax.camera import Camera
 from ccjax.estimators.registry import qualified_name
 from ccjax.world import World
-
-SCHEMA = 1
-"""Version of the entry layout; an entry of another schema is rejected (and replaced)."""
 
 WEAK_LIMIT = 4096
 """Largest weakly typed array a model may hold to be stored (rebuilt from Python scalars)."""
@@ -49,31 +42,6 @@ _WORLD_ARRAYS = ("reflectances", "train_illuminants", "test_illuminants", "canon
 
 class Unserialisable(TypeError):
     """A value the store cannot write as data (a function, a class outside the allow-list)."""
-
-
-class Rejected(ValueError):
-    """An entry that does not verify: unreadable, another schema or key, a digest that does not
-    match, a class outside the allow-list, fields that are not the class's."""
-
-
-def digest(skeleton: Any, arrays: Mapping[str, np.ndarray]) -> str:
-    """The content digest of an entry.
-
-    Arguments:
-        skeleton: JSON-able description (``None`` for worlds' named fields, or a dict of them).
-        arrays: the arrays by name.
-
-    Returns:
-        sha256 hex digest of ``json.dumps(skeleton, sort_keys=True, separators=(",", ":"))`` followed,
-        for each array name in sorted order, by ``"\\n<name> <dtype.str> <shape>\\n"`` and its
-        C-order bytes.
-    """
-    hasher = hashlib.sha256(json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode())
-    for name in sorted(arrays):
-        array = np.ascontiguousarray(arrays[name])
-        hasher.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
-        hasher.update(array.tobytes())
-    return hasher.hexdigest()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -297,79 +265,15 @@ def world_from_parts(names: Any, arrays: Mapping[str, np.ndarray]) -> World:
         raise Rejected(f"world arrays: {error}") from None
 
 
-# ---------------------------------------------------------------------------------------------
-# entries on disk
-
-
-def write_entry(
-    path: Path, kind: str, key: str, skeleton: Any, arrays: Mapping[str, np.ndarray], facts: Mapping[str, Any]
-) -> None:
-    """Write ``<path>.npz`` and then the record ``path`` (``.json``), each atomically.
-
-    Arguments:
-        path: the record's path (``<folder>/<key>.json``).
-        kind: what the entry holds (``"fit"``, ``"world"``).
-        key: its cache key.
-        skeleton: the JSON part the digest covers.
-        arrays: the arrays by name.
-        facts: JSON-able facts for people (label, world name, ...), not read back.
-
-    Raises:
-        OSError: the cache cannot be written.
-    """
-    buffer = io.BytesIO()
-    np.savez(buffer, **arrays)  # pyright: ignore[reportArgumentType]
-    atomic_write(path.with_suffix(".npz"), buffer.getvalue())
-    record = {
-        **{name: value for name, value in facts.items() if name not in _RECORD},
-        "schema": SCHEMA,
-        "kind": kind,
-        "key": key,
-        "digest": digest(skeleton, arrays),
-        "skeleton": skeleton,
-    }
-    atomic_write(path, json.dumps(record, default=str).encode())
-
-
-_RECORD = ("schema", "kind", "key", "digest", "skeleton")
-
-
-def read_entry(path: Path, kind: str, key: str) -> tuple[Any, dict[str, np.ndarray]] | None:
-    """The verified ``(skeleton, arrays)`` of the entry at ``path``, or None when there is none.
-
-    Arguments:
-        path: the record's path.
-        kind: the kind it must hold.
-        key: the key it must have.
-
-    Returns:
-        ``(skeleton, arrays)``, or None when ``path`` does not exist.
-
-    Raises:
-        Rejected: the entry exists but does not verify.
-    """
-    try:
-        text = path.read_bytes()
-    except FileNotFoundError:
-        return None
-    except OSError as error:
-        raise Rejected(f"unreadable record: {error}") from None
-    try:
-        record = json.loads(text)
-    except (ValueError, RecursionError):
-        raise Rejected("the record is not JSON") from None
-    if not isinstance(record, dict) or set(_RECORD) - set(record):
-        raise Rejected("the record lacks schema, kind, key, digest or skeleton")
-    if record["schema"] != SCHEMA:
-        raise Rejected(f"schema {record['schema']!r}, expected {SCHEMA}")
-    if record["kind"] != kind or record["key"] != key:
-        raise Rejected(f"the record is of {record['kind']!r} {record['key']!r}, expected {kind!r} {key!r}")
-    try:
-        # Opened here, so that a damaged archive's file is closed too.
-        with path.with_suffix(".npz").open("rb") as handle, np.load(handle, allow_pickle=False) as stored:
-            arrays = {name: stored[name] for name in stored.files}
-    except Exception as error:  # any failure to read the arrays rejects the entry
-        raise Rejected(f"unreadable arrays: {type(error).__name__}: {error}") from None
-    if digest(record["skeleton"], arrays) != record["digest"]:
-        raise Rejected("the content digest does not match")
-    return record["skeleton"], arrays
+__all__ = [
+    "Rejected",
+    "Unserialisable",
+    "decode",
+    "digest",
+    "encode",
+    "read_entry",
+    "same_tree",
+    "world_from_parts",
+    "world_parts",
+    "write_entry",
+]

@@ -26,7 +26,6 @@ import dataclasses
 import enum
 import json
 import os
-import warnings
 from collections.abc import Callable, Hashable, Mapping
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ import numpy as np
 
 from ccjax._cache import FORMAT_VERSION, cache_directory, code_fingerprint, content_key, read_model_metadata, save_model
 from ccjax._cache import load_model as load_leaves
+from ccjax._entries import CacheEntryRejected, reject
 from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.runs import _serial
@@ -44,11 +44,6 @@ from ccjax.world import World
 
 MEMO_SIZE = 64
 """Fitted models (and, separately, worlds) kept in memory; the least recently used go first."""
-
-
-class CacheEntryRejected(UserWarning):
-    """A cache entry did not verify (damaged, edited, another schema, a class outside the
-    allow-list); it is fitted or built again and replaced."""
 
 
 _MODELS: collections.OrderedDict[Hashable, AbstractEstimator] = collections.OrderedDict()
@@ -292,15 +287,7 @@ def _decode(skeleton: Any, arrays: Mapping[str, np.ndarray], allowed: Mapping[st
 
 
 def _reject(path: Path, why: Exception, action: str) -> None:
-    """Remove the entry's files (a new entry replaces them) and say so in one warning line."""
-    # Removed first: where warnings are errors, the next run then starts from a clean entry.
-    for stale in (path, path.with_suffix(".npz")):
-        with contextlib.suppress(OSError):
-            stale.unlink()
-    reason = " ".join(str(why).split())
-    warnings.warn(
-        f"cache entry {path} does not verify ({reason}); {action} and replacing it", CacheEntryRejected, stacklevel=4
-    )
+    reject(path, why, action, stacklevel=5)
 
 
 def _remember(memo: collections.OrderedDict, key: Hashable, value: Any) -> None:

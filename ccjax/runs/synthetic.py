@@ -22,10 +22,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike, Float
 
-from ccjax import scenes
-from ccjax._cache import code_fingerprint, content_key, read_arrays, write_arrays
-from ccjax.estimators.base import AbstractEstimator, Padding, require_kind
-from ccjax.runs.engine import Placement, Stream, chunking, run_streams
+from ccjax import limits, scenes
+from ccjax._cache import code_fingerprint, content_key
+from ccjax._entries import Expect, read_arrays, write_arrays
+from ccjax.estimators.base import AbstractEstimator, Padding, Status, require_kind
+from ccjax.runs.engine import STATISTICS, Placement, Stream, applicable, chunking, run_streams
 from ccjax.scenes import SceneOptions, Scenes, SceneTables, require_count
 from ccjax.world import World
 
@@ -64,7 +65,7 @@ class SyntheticSource:
         if not counts:
             raise ValueError("n_surfaces: expected at least one surface count, got none")
         object.__setattr__(self, "surfaces", counts)
-        object.__setattr__(self, "n_scenes", require_count(self.n_scenes, "n_scenes", 1))
+        object.__setattr__(self, "n_scenes", require_count(self.n_scenes, "n_scenes", 1, limits.SCENES))
         if not isinstance(self.options, SceneOptions):
             raise ValueError(f"options: expected a SceneOptions, got {type(self.options).__name__}")
 
@@ -212,6 +213,29 @@ def _maker(source: SyntheticSource, tables: SceneTables, n: int, slots: int, sha
     return make, (*program, size, options, materials)
 
 
+_RANGES = {"angular": (0.0, 180.0), "brightness": (-np.inf, np.inf)}
+"""Value ranges of the statistics (others are distances, >= 0)."""
+
+
+def cell_layout(model: AbstractEstimator, n_scenes: int) -> dict[str, Expect]:
+    """What a cached cell of ``model``'s per-scene errors must hold (:func:`ccjax._entries.read_arrays`):
+    the statistics that apply to it, ``ok`` and ``status``, one value per scene, finite and in range.
+
+    Arguments:
+        model: the estimator the errors are of.
+        n_scenes: the source's scene count.
+
+    Returns:
+        Array name -> :class:`ccjax._entries.Expect`.
+    """
+    floats = {name: Expect((n_scenes,), "f", *_RANGES.get(name, (0.0, np.inf))) for name in STATISTICS}
+    return {
+        **applicable(model, floats),
+        "ok": Expect((n_scenes,), "b"),
+        "status": Expect((n_scenes,), "iu", 0.0, float(max(Status))),
+    }
+
+
 def run_synthetic(
     world: World,
     models: Sequence[AbstractEstimator],
@@ -262,6 +286,7 @@ def run_synthetic(
     streams: list[Stream] = []
     cells: dict[tuple[int, int, int], dict[str, np.ndarray]] = {}
     cell_keys: dict[tuple[int, int, int], str] = {}
+    cell_facts: dict[tuple[int, int, int], dict] = {}
     for index, source in enumerate(sources):
         need = (source.options.metallic is not None, source.options.fluorescent is not None)
         tables_key = (need, id(source.metals), id(source.fluorescent_surfaces))
@@ -285,7 +310,10 @@ def run_synthetic(
                 for position, label in enumerate(labels):
                     if label is not None:
                         cell_key = content_key("sweep", label, n, sizes[n], size, *common)
-                        stored = read_arrays("sweeps", cell_key)
+                        facts = {"label": label, "surfaces": n, "scenes": source.n_scenes, "world": world.name}
+                        layout = cell_layout(models[position], source.n_scenes)
+                        stored = read_arrays("sweeps", cell_key, layout, facts)
+                        cell_facts[index, n, position] = facts
                         if stored is not None:
                             cells[index, n, position] = stored
                         cell_keys[index, n, position] = cell_key
@@ -300,8 +328,7 @@ def run_synthetic(
         for position, errors in computed.items():
             cells[index, n, position] = errors
             if (index, n, position) in cell_keys:
-                record = {"label": labels[position], "surfaces": n, "world": world.name}
-                write_arrays("sweeps", cell_keys[index, n, position], errors, record)
+                write_arrays("sweeps", cell_keys[index, n, position], errors, cell_facts[index, n, position])
     errors = [
         {n: [cells[index, n, p] for p in range(len(models))] for n in source.surfaces}
         for index, source in enumerate(sources)

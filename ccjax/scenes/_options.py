@@ -10,9 +10,9 @@ synthetic scene source renders (a sweep, a thesis table's condition).
 from __future__ import annotations
 
 import math
-import operator
 from dataclasses import dataclass
 
+from ccjax.limits import require_count as require_count
 from ccjax.materials import METAL_MAX_AMOUNT, METAL_PROBABILITY
 
 
@@ -100,31 +100,6 @@ def _require_real(value, name: str, expected: str, accept) -> None:
     number = float(value)
     if not math.isfinite(number) or not accept(number):
         raise ValueError(f"{name}: expected {expected}, got {value!r}")
-
-
-def require_count(value, name: str, low: int, high: int | None = None) -> int:
-    """``value`` as a Python ``int`` (any integer-like value, e.g. ``np.int64``, via
-    ``operator.index``); a ``ValueError`` naming ``name`` when it is not an integer in range.
-
-    Arguments:
-        value: the count to check.
-        name: the argument's name, for the error.
-        low: smallest allowed value.
-        high: largest allowed value (``None``: no bound).
-
-    Returns:
-        ``value`` as an ``int``.
-    """
-    span = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
-    if isinstance(value, bool):
-        raise ValueError(f"{name}: expected {span}, got the boolean {value!r}")
-    try:
-        number = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name}: expected {span}, got {value!r} of type {type(value).__name__}") from None
-    if number < low or (high is not None and number > high):
-        raise ValueError(f"{name}: expected {span}, got {number}")
-    return number
 
 
 def resolve_materials(metallic, fluorescent) -> tuple[Metallic | None, Fluorescent | None]:

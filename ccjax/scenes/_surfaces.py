@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, UInt32
 
+from ccjax import limits
 from ccjax.scenes._options import (
     Fluorescent,
     Metallic,
@@ -380,7 +381,7 @@ def sample(
         :class:`Scenes` with batch size ``n_scenes``.
     """
     n_reflectances = int(world.reflectances.shape[0])
-    n_scenes = require_count(n_scenes, "n_scenes", 1)
+    n_scenes = require_count(n_scenes, "n_scenes", 1, limits.SAMPLE_SCENES)
     n_surfaces = require_count(n_surfaces, "n_surfaces", 1, n_reflectances)
     options = SceneOptions.resolve(specular, noise, clip, metallic, fluorescent)
     tables = SceneTables.from_world(

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ccjax import limits
 from ccjax.precision import einsum, matmul
 from ccjax.sharpening._transforms import database_responses
 from ccjax.world import World
@@ -238,6 +239,11 @@ def new_sharpening(
     Returns:
         A :class:`NewSharpening`.
     """
+    # A NaN, infinite or negative weight gave a NaN objective and a "sharpened" camera.
+    if lambda_p is not None:
+        lambda_p = limits.check_value(lambda_p, limits.SHARPENING_PENALTY, "lambda_p")
+    if lambda_n is not None:
+        lambda_n = limits.check_value(lambda_n, limits.SHARPENING_PENALTY, "lambda_n")
     train = database_responses(world, world.train_illuminants)
     canonical = world.canonical_rgb
     stats = DatabaseStatistics.of(train, canonical)

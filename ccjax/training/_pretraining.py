@@ -31,7 +31,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from ccjax._cache import content_key, read_arrays, write_arrays
+from ccjax._cache import content_key
+from ccjax._entries import Expect, read_arrays, write_arrays
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.io.reading import LinearImage
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing, prepare_input
@@ -200,13 +201,20 @@ def render_examples(
         The :class:`Examples` (names ``synthetic-<i>``).
     """
     key = content_key("pretraining", asdict(pretraining), rule.name, input_kind, dark)
-    stored = read_arrays("pretraining", key)
-    if stored is None:
+    facts = {"pretraining": repr(pretraining), "rule": rule.name, "input_kind": input_kind, "dark": dark}
+    n, axes = pretraining.images, (None, None) if input_kind == "image" else (None,)
+    layout = {
+        "x": Expect((n, *axes, 3), "f"),
+        "mask": Expect((n, *axes), "b"),
+        "illuminant": Expect((n, 3), "f", 0.0),
+    }
+    stored = read_arrays("pretraining", key, layout, facts)
+    if stored is None or stored["mask"].shape != stored["x"].shape[:-1]:
         rgb, clipped, lights = (np.asarray(a) for a in render_images(pretraining))
         inputs = [prepare_input(rule, LinearImage(rgb[i], clipped[i]), dark=dark) for i in range(len(rgb))]
         x, mask = stack_inputs([a for a, _ in inputs], [m for _, m in inputs], input_kind)
         stored = {"x": x, "mask": mask, "illuminant": lights.astype(np.float32)}
-        write_arrays("pretraining", key, stored, {"pretraining": repr(pretraining), "rule": rule.name})
+        write_arrays("pretraining", key, stored, facts)
     names = tuple(f"synthetic-{i}" for i in range(len(stored["x"])))
     return Examples(jnp.asarray(stored["x"]), jnp.asarray(stored["mask"]), jnp.asarray(stored["illuminant"]), names)
 
