@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import ndimage
+from spatial_reference import grey_edge_reference
 
 import ccjax
 from ccjax.io.reading import LinearImage
 from ccjax.preprocessing import estimate_image
 from ccjax.runs import store
-from tests.spatial_reference import grey_edge_reference
 
 CAST = np.array([1.0, 0.62, 0.35])  # a warm (tungsten-like) light, camera RGB
 

@@ -96,7 +96,6 @@ def test_sharpen_refuses_a_plot_it_would_not_write(tmp_path, monkeypatch, capsys
         (["--json", "{tmp}/afile/r.json"], "not a folder"),
         (["--methods", "GW,GWW"], "'GWW'"),
         (["--preprocessing", "ave5-nonsense"], "nonsense"),
-        (["--objects", "0"], "--objects"),
     ],
 )
 def test_indexing_checks_everything_first(tmp_path, monkeypatch, capsys, argv, needle):
@@ -104,6 +103,17 @@ def test_indexing_checks_everything_first(tmp_path, monkeypatch, capsys, argv, n
     _no_work(monkeypatch)
     assert cli.main(["indexing", "--no-progress", *[a.format(tmp=tmp_path) for a in argv]]) == 2
     _one_line_error(capsys.readouterr(), needle)
+
+
+def test_indexing_objects_outside_the_limits_are_refused_by_the_parser(tmp_path, monkeypatch, capsys):
+    """``--objects`` is bounded by the limits table: argparse refuses 0 (exit 2, naming the option
+    and the range) before any work."""
+    _no_work(monkeypatch)
+    with pytest.raises(SystemExit) as stopped:
+        cli.main(["indexing", "--no-progress", "--objects", "0"])
+    assert stopped.value.code == 2
+    error = capsys.readouterr().err
+    assert "Traceback" not in error and "argument --objects: expected an integer in [1, 10000], got 0" in error
 
 
 # ---------------------------------------------------------------------------------------------

@@ -80,7 +80,8 @@ def test_adam_options_for_ffcc_are_refused(folder, capsys):
     )
 
 
-def test_the_help_gives_each_familys_real_defaults(capsys):
+def test_the_help_gives_each_familys_real_defaults(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "400")  # argparse wraps at hyphens: "log-" / "chroma-mlp" on a narrow terminal
     with pytest.raises(SystemExit):
         cli.main(["train", "--help"])
     text = " ".join(capsys.readouterr().out.split())
