@@ -136,10 +136,12 @@ EXTRAS = {"cv2": "opencv-contrib-python-headless (the test extra)", "rawpy": "ra
 SLOW_PAGES = {"docs/getting-started.md": 105, "docs/photographs.md": 200, "docs/camera-without-labels.md": 71}
 """Pages whose blocks take long (seconds measured on 2 shared CPU cores): a sweep of 1,000 scenes;
 FFCC trained on 16 images; two cameras' worlds, maps and a leave-one-camera-out run. They run with
-the slow suite."""
+the slow suite, those over 100 s by hand (``pytest -m manual``: CI's slow run has 30 minutes)."""
 
 PAGES = [
-    pytest.param(page, marks=pytest.mark.slow) if page in SLOW_PAGES else page
+    pytest.param(page, marks=pytest.mark.manual if SLOW_PAGES[page] > 100 else pytest.mark.slow)
+    if page in SLOW_PAGES
+    else page
     for page in [
         "README.md",
         *sorted(str(p.relative_to(ROOT)) for p in DOCS.glob("*.md") if "```python" in p.read_text()),

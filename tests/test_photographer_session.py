@@ -36,7 +36,7 @@ def test_masking_hides_times_and_only_times():
     )
 
 
-@pytest.mark.slow  # 3 CPU-minutes (10 minutes on 2 shared cores): six commands, FFCC trained once
+@pytest.mark.manual  # 3 CPU-minutes (10 minutes on 2 shared cores): six commands, FFCC trained once
 def test_the_committed_session_is_what_the_commands_print(tmp_path):
     script = _script()
     out = tmp_path / "session.md"
