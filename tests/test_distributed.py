@@ -29,6 +29,7 @@ ROLES = ("reference0", "mesh0", "process0", "process1")
 INIT_FAILED = 77  # the worker's exit status when jax.distributed cannot start here
 TOLERANCE = 1e-6
 GRADIENT_TOLERANCE = 3e-5
+"""The pooled gradient's tolerance: twice its measured float32 error, with margin (see check_training)."""
 
 
 def free_port() -> int:
@@ -175,9 +176,16 @@ def check_training(runs):
     for role in ("mesh0", "process0", "process1"):
         results = runs[role][0]
         assert int(results["train/best_epoch"]) == 1
-        # The pooled gradient is a float32 sum over the batch whose terms cancel; the sharded
-        # program adds them in another order, so it agrees to a few hundred float32 roundings of
-        # its largest entry, not to 1e-6 of it.
+        # The pooled gradient is compared at GRADIENT_TOLERANCE, a measured float32 bound: the same
+        # batch's gradient computed in float64 (jax_enable_x64, same model and scenes) differs from
+        # the float32 one by 9.4e-6 of its largest entry (the sum over examples of each example's
+        # float32 error: 9.6e-6; without the example at 0.06 degrees, 8.4e-6, so it is not the small
+        # angle). The likely source is the correlation itself: each light's log-posterior is a float32 sum
+        # over the image's chromaticity bins of a table with unit noise added, rounded to about
+        # u * sum|terms| (u = 2**-24), and the softmax turns that into ~1e-5 relative on the weights.
+        # Two float32 programs (one device, four devices) each carry such an error, so they may
+        # differ by about twice it, 1.9e-5; measured 1.5e-5 to 2.1e-5 with four devices. Parameters
+        # and loss after the Adam steps stay at TOLERANCE.
         assert_close(results["train/gradient"], reference["train/gradient"], f"{role} gradient", GRADIENT_TOLERANCE)
         for name in ("train/params", "train/loss"):
             assert_close(results[name], reference[name], f"{role} {name}")

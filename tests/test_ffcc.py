@@ -226,3 +226,14 @@ def test_registry_builds_an_untrained_image_estimator_and_no_data_is_flagged(def
     )
     estimate = trained(jnp.zeros((8, 8, 3), jnp.float32), jnp.ones((8, 8), bool))
     assert not bool(estimate.ok) and np.all(np.isfinite(np.asarray(estimate.illuminant)))
+
+
+def test_training_sets_are_padded_to_few_sizes_and_small_ones_stay_small():
+    from ccjax.estimators.ffcc._fitting import PAD, padded_count
+
+    # Closed form: the next power of two (at least 8) below PAD, then multiples of PAD.
+    expected = {1: 8, 8: 8, 9: 16, 12: 16, 24: 32, 100: 128, 127: 128, 128: 128, 129: 256, 1140: 1152}
+    assert PAD == 128
+    assert {count: padded_count(count) for count in expected} == expected
+    sizes = {padded_count(count) for count in range(1, 2049)}
+    assert len(sizes) == 5 + 15  # 8, 16, 32, 64, 128 and 256 ... 2048

@@ -11,10 +11,12 @@ import contextlib
 import importlib
 import importlib.util
 import os
+import pathlib
 import signal
 import sys
 import threading
 import time
+import traceback
 import warnings
 from typing import TYPE_CHECKING
 
@@ -210,10 +212,42 @@ def one_line_warnings(command: str | None, original: Callable[..., str]) -> Call
     return format_warning
 
 
+TRACEBACK_VARIABLE = "CCJAX_TRACEBACK"
+"""Set (to anything) in the environment, an unexpected error shows its whole traceback."""
+
+
+def unexpected_error_line(command: str | None, error: Exception) -> str:
+    """One line for an error ccjax did not expect (a bug, not a bad input): the usual prefix, the
+    error's type and message, and the place in ccjax it came from, so that a report can name it.
+
+    Arguments:
+        command: the subcommand (None: before the arguments were parsed).
+        error: the exception.
+
+    Returns:
+        ``"ccjax CMD: error: unexpected TypeName at ccjax/FILE.py:LINE: message (...)"``.
+    """
+    frames = traceback.extract_tb(error.__traceback__)
+    inside = [frame for frame in frames if f"{os.sep}ccjax{os.sep}" in frame.filename] or frames
+    place = ""
+    if inside:
+        frame = inside[-1]
+        parts = pathlib.PurePath(frame.filename).parts
+        start = len(parts) - 1 - parts[::-1].index("ccjax") if "ccjax" in parts else len(parts) - 1
+        place = f" at {'/'.join(parts[start:])}:{frame.lineno}"
+    message = " ".join(str(error).split())[:300] or "(no message)"
+    return (
+        f"{prefix(command)}: error: unexpected {type(error).__name__}{place}: {message} "
+        f"(a ccjax bug: please report it; {TRACEBACK_VARIABLE}=1 shows the traceback)"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``ccjax`` with ``argv`` (default: the process arguments).
 
     Errors in arguments, files and folders (``ValueError``, ``OSError``) print one line and give 2;
+    any other error (a bug) prints one line naming its type and place in ccjax and gives 1
+    (``CCJAX_TRACEBACK=1``: the traceback instead);
     Ctrl-C at any time, also while JAX is being imported (``import ccjax`` defers it to first use),
     prints one line and gives 130 (128 + SIGINT), without a traceback.
 
@@ -257,6 +291,9 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(error, (ValueError, OSError)):
             print(f"{prefix(command)}: error: {error}", file=sys.stderr)
             return 2
+        if isinstance(error, Exception) and not os.environ.get(TRACEBACK_VARIABLE):
+            print(unexpected_error_line(command, error), file=sys.stderr)
+            return 1
         raise
     finally:
         sys.unraisablehook = previous_hook
@@ -269,6 +306,7 @@ __all__ = [
     "COMMANDS",
     "GROUPS",
     "STARTED",
+    "TRACEBACK_VARIABLE",
     "build_parser",
     "groups",
     "import_holding_interrupts",
@@ -277,4 +315,5 @@ __all__ = [
     "one_line_warnings",
     "prefix",
     "redeliver_interrupts",
+    "unexpected_error_line",
 ]

@@ -477,7 +477,7 @@ def evaluate(
                 "cameras` lists the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the "
                 "ground truth) or use --world barnard1999"
             )
-        if log is not None:
+        if log is not None and len(folders) > 1:  # one folder: the header already says it all
             log(f"{folder.label}: {folder.directory} (camera: {folder.camera or 'none given'})")
         try:
             evaluation = evaluate_data(

@@ -52,7 +52,25 @@ FILL = 0.75
 (:func:`fit_grid`)."""
 
 PAD = 128
-"""Training sets are padded (with images of weight 0) to a multiple of this many images."""
+"""Training sets of at least this many images are padded (with images of weight 0) to a multiple
+of it; smaller ones to the next power of two (at least 8), so that the halves a hyperparameter
+choice trains on are not padded to ten times their size."""
+
+
+def padded_count(count: int) -> int:
+    """The number of images a training set of ``count`` is padded to (:data:`PAD`): few compiled
+    solvers serve every size, and a small set costs a small solver.
+
+    Arguments:
+        count: the training images.
+
+    Returns:
+        The next power of two at or above ``count`` (at least 8) below :data:`PAD`, else the next
+        multiple of :data:`PAD`.
+    """
+    if count >= PAD:
+        return -(-count // PAD) * PAD
+    return max(8, 1 << (count - 1).bit_length())
 
 
 @dataclass(frozen=True)
@@ -355,10 +373,10 @@ def train(
     model = eqx.tree_at(lambda m: (m.origin, m.bin_size), model, (origin, size))
     histogram_fft = jnp.fft.rfft2(histograms(model, jnp.asarray(images), jnp.asarray(masks)))
     truth = (truth_uv - origin) / size
-    # Pad the training set to a multiple of PAD images that weigh 0: training sets of nearby
-    # sizes (the folds of a cross-validation) share one compiled solver.
+    # Pad the training set with images that weigh 0: training sets of nearby sizes (the folds of a
+    # cross-validation) share one compiled solver.
     count = truth.shape[0]
-    extra = -count % PAD
+    extra = padded_count(count) - count
     counted = jnp.concatenate([jnp.ones(count, truth.dtype), jnp.zeros(extra, truth.dtype)])
     histogram_fft = jnp.concatenate([histogram_fft, jnp.repeat(histogram_fft[:1], extra, axis=0)])
     truth = jnp.concatenate([truth, jnp.repeat(truth[:1], extra, axis=0)])
