@@ -139,9 +139,7 @@ FFCC trained on 16 images; two cameras' worlds, maps and a leave-one-camera-out 
 the slow suite."""
 
 PAGES = [
-    pytest.param(page, marks=pytest.mark.slow)
-    if page in SLOW_PAGES
-    else page
+    pytest.param(page, marks=pytest.mark.slow) if page in SLOW_PAGES else page
     for page in [
         "README.md",
         *sorted(str(p.relative_to(ROOT)) for p in DOCS.glob("*.md") if "```python" in p.read_text()),

@@ -11,14 +11,13 @@ import argparse
 import io as stdlib_io
 import json
 import os
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 import tifffile
+from fork_client import ForkServer
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from PIL import Image
@@ -314,53 +313,15 @@ def test_number_options_give_a_finite_value_in_range_or_one_message(text):
 # the command line, through the fork server
 
 
-class Commands:
-    """``tests/fork_server.py`` in a subprocess: run ``ccjax argv``, learn its exit code and peak
-    memory (``os.wait4``)."""
-
-    def __init__(self, folder: Path):
-        env = dict(os.environ, CCJAX_CACHE=str(folder / "cache"))
-        self.logs = folder
-        self.count = 0
-        server = Path(__file__).with_name("fork_server.py")
-        self.process = subprocess.Popen(
-            [sys.executable, str(server)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
-        )
-        assert json.loads(self._read()) == {"ready": True}
-
-    def _read(self) -> str:
-        assert self.process.stdout is not None
-        line = self.process.stdout.readline()
-        assert line, "the fork server stopped"
-        return line
-
-    def run(self, argv: list[str]) -> tuple[int, str, int]:
-        """``(exit code, stderr, peak resident kB)`` of ``ccjax argv``."""
-        assert self.process.stdin is not None
-        self.count += 1
-        log = self.logs / f"{self.count:04d}"
-        request = {"argv": argv, "cwd": str(self.logs), "stdout": f"{log}.out", "stderr": f"{log}.err"}
-        self.process.stdin.write(json.dumps(request) + "\n")
-        self.process.stdin.flush()
-        self._read()  # the pid
-        done = json.loads(self._read())
-        return done["status"], Path(f"{log}.err").read_text(errors="replace"), done["maxrss_kb"]
-
-    def close(self) -> None:
-        assert self.process.stdin is not None and self.process.stdout is not None
-        self.process.stdin.close()
-        self.process.wait(60)
-        self.process.stdout.close()
-
-
 @pytest.fixture(scope="module")
 def commands(tmp_path_factory):
-    server = Commands(tmp_path_factory.mktemp("fork"))
+    folder = tmp_path_factory.mktemp("fork")
+    server = ForkServer(folder, CCJAX_CACHE=str(folder / "cache"))
     yield server
     server.close()
 
 
-def _check_run(commands: Commands, argv: list[str]) -> int:
+def _check_run(commands: ForkServer, argv: list[str]) -> int:
     code, err, peak = commands.run(argv)
     TALLY["cases"] += 1
     TALLY["tracebacks"] += "Traceback" in err

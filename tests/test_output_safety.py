@@ -4,7 +4,6 @@ checked before any work with one-line errors (exit 2; Ctrl-C: 130)."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -13,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fork_client import ForkServer
 from image_files import bad_files
 
 import ccjax.io
@@ -338,53 +338,6 @@ KILL_TRIALS = 50
 QUICK_KILL_TRIALS = 4
 
 
-class ForkServer:
-    """``tests/fork_server.py`` in a subprocess: start a ``ccjax`` command, learn its pid, wait for it."""
-
-    def __init__(self, tmp_path: Path):
-        env = dict(
-            os.environ,
-            CCJAX_CACHE=str(tmp_path / "cache"),
-            JAX_COMPILATION_CACHE_DIR=str(tmp_path / "jax-cache"),
-            JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0",
-            JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES="0",
-        )
-        self.logs = tmp_path / "logs"
-        self.logs.mkdir()
-        self.count = 0
-        server = Path(__file__).with_name("fork_server.py")
-        self.process = subprocess.Popen(
-            [sys.executable, str(server)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
-        )
-        assert json.loads(self._read()) == {"ready": True}
-
-    def _read(self) -> str:
-        assert self.process.stdout is not None
-        line = self.process.stdout.readline()
-        assert line, "the fork server stopped"
-        return line
-
-    def start(self, argv: list[str], cwd: Path) -> tuple[int, Path]:
-        """Fork a child running ``ccjax argv``; returns its pid and the stem of its log files."""
-        assert self.process.stdin is not None
-        self.count += 1
-        log = self.logs / f"{self.count:03d}"
-        request = {"argv": argv, "cwd": str(cwd), "stdout": f"{log}.out", "stderr": f"{log}.err"}
-        self.process.stdin.write(json.dumps(request) + "\n")
-        self.process.stdin.flush()
-        return json.loads(self._read())["pid"], log
-
-    def wait(self) -> int:
-        """The exit code of the last child (minus the signal that killed it)."""
-        return json.loads(self._read())["status"]
-
-    def close(self) -> None:
-        assert self.process.stdin is not None and self.process.stdout is not None
-        self.process.stdin.close()
-        self.process.wait(60)
-        self.process.stdout.close()
-
-
 def _kill_inputs(folder: Path) -> None:
     """Six 96x128 images, PNG and TIFF in turn: twelve outputs, each written in some milliseconds."""
     folder.mkdir()
@@ -430,7 +383,15 @@ def _run_kill_trials(tmp_path: Path, trials: int, seed: int = 0) -> dict[str, in
     folder, out = tmp_path / "in", tmp_path / "out"
     _kill_inputs(folder)
     argv = ["correct", str(folder), str(out), "--method", "GW", "--no-progress", "--overwrite"]
-    server = ForkServer(tmp_path)
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    server = ForkServer(
+        logs,
+        CCJAX_CACHE=str(tmp_path / "cache"),
+        JAX_COMPILATION_CACHE_DIR=str(tmp_path / "jax-cache"),
+        JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0",
+        JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES="0",
+    )
     try:
         # Reference runs (uninterrupted): the first fills the caches (world, preview matrix, compiled
         # code); the second gives the new contents of every output and how long the writing lasts.
