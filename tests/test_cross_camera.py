@@ -185,6 +185,7 @@ def test_a_model_for_one_camera_is_refused_on_another(small_world_commands, two_
         (["--camera-for=nikon=Canon EOS 601D"], ("--camera-for", "unknown camera", "Canon EOS 600D")),
         (["--camera-for=nikon="], ("--camera-for", "expected FOLDER=CAMERA")),
         (["--folds", "3"], ("--leave-one-camera-out", "leave out --folds")),
+        (["--adapt"], ("--adapt", "give --train FFCC")),
     ],
 )
 def test_leave_one_camera_out_refuses_bad_options_in_one_line(
@@ -203,6 +204,7 @@ def test_leave_one_camera_out_refuses_bad_options_in_one_line(
         (["--target-camera", "Nikon D5301"], ("--target-camera", "unknown camera", NIKON)),
         (["--target-camera", NIKON, "--ground-truth-name", "gt.csv"], ("gt.csv",)),
         (["--camera-map", "global"], ("--camera-map", "--target-camera")),
+        (["--target-camera", NIKON, "--adapt-on", "."], ("--adapt-on", "FFCC", "grey-edge-1-6-2")),
     ],
 )
 def test_training_for_a_camera_refuses_bad_options_in_one_line(

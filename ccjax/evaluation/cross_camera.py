@@ -12,6 +12,7 @@ through the scored camera's curves, and the learned methods trained on the pool.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 
 import equinox as eqx
@@ -380,6 +381,7 @@ def train_for_camera(
     rendered: int = 0,
     read: ReadOptions | None = None,
     options: TrainingOptions | None = None,
+    adapt_on: str | os.PathLike | None = None,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
 ):
@@ -395,6 +397,8 @@ def train_for_camera(
         rendered: images rendered through the target's curves pooled in.
         read: how images are read and prepared (default :class:`ReadOptions`).
         options: seed, epochs, pretraining (default :class:`TrainingOptions`).
+        adapt_on: a folder of the target camera's *unlabelled* images: FFCC's light prior adapted
+            to them (:func:`adapt_to_images`; a ground-truth file there is never read).
         progress: progress bars.
         log: a line per folder and before the training.
 
@@ -426,6 +430,16 @@ def train_for_camera(
     world = store.world("default", target, seed=options.seed)
     pool = pooled_source(data, target, camera_map, seed=options.seed)
     model, record, images = train_pooled(label, pool, world, read, options, rendered, progress=progress, log=log)
+    adapted = None
+    if adapt_on is not None:
+        from ccjax.runs.sources import image_folder, raise_failures
+
+        unlabelled = image_folder(adapt_on, masks=read.masks, read_options=read.image, max_pixels=read.max_pixels)
+        if not unlabelled.usable():
+            raise_failures(list(unlabelled.failures.values()), len(unlabelled))
+        lights = pool.lights()[pool.usable()]
+        model = adapt_to_images(model, unlabelled, target, lights, read, seed=options.seed, progress=progress)
+        adapted = {"directory": str(adapt_on), "images": len(unlabelled.usable())}
     facts = {
         "target_camera": target,
         "camera_map": camera_map,
@@ -437,5 +451,6 @@ def train_for_camera(
         "rendered": rendered,
         "images": images,
         "seed": options.seed,
+        "adapted_on": adapted,
     }
     return model, record, facts

@@ -105,7 +105,7 @@ def _scores(model: FFCC, histograms: Float[Array, "N 2 n n"]) -> Float[Array, "N
 
 def adapt_bias(
     model: FFCC,
-    histograms: Float[Array, "N 2 n n"],
+    histograms: Float[Array | np.ndarray, "N 2 n n"],
     training_uv: Float[Array | np.ndarray, "S 2"],
     physics_uv: Float[Array | np.ndarray, "L 2"],
     options: AdaptOptions | None = None,
