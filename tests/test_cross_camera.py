@@ -185,6 +185,7 @@ def test_a_model_for_one_camera_is_refused_on_another(small_world_commands, two_
         (["--camera-for=nikon=Canon EOS 601D"], ("--camera-for", "unknown camera", "Canon EOS 600D")),
         (["--camera-for=nikon="], ("--camera-for", "expected FOLDER=CAMERA")),
         (["--folds", "3"], ("--leave-one-camera-out", "leave out --folds")),
+        (["--adapt"], ("--adapt", "give --train FFCC")),
     ],
 )
 def test_leave_one_camera_out_refuses_bad_options_in_one_line(
@@ -203,6 +204,7 @@ def test_leave_one_camera_out_refuses_bad_options_in_one_line(
         (["--target-camera", "Nikon D5301"], ("--target-camera", "unknown camera", NIKON)),
         (["--target-camera", NIKON, "--ground-truth-name", "gt.csv"], ("gt.csv",)),
         (["--camera-map", "global"], ("--camera-map", "--target-camera")),
+        (["--target-camera", NIKON, "--adapt-on", "."], ("--adapt-on", "FFCC", "grey-edge-1-6-2")),
     ],
 )
 def test_training_for_a_camera_refuses_bad_options_in_one_line(
@@ -217,3 +219,52 @@ def test_a_folder_without_a_camera_is_refused_for_training(small_world_commands,
     argv = ["train", str(two_folders / "canon"), str(two_folders / "nikon"), f"--camera-for=canon={CANON}"]
     assert cli.main([*argv, "--target-camera", NIKON, "--method", "grey-edge-1-6-2", "--no-progress"]) == 2
     one_line_error(capsys.readouterr(), "--camera-for", "no camera for", str(two_folders / "nikon"))
+
+
+@pytest.mark.slow  # two leave-one-camera-out runs that train FFCC: minutes on two shared cores
+def test_adaptation_reads_the_scored_folders_images_never_its_ground_truth(
+    small_world_commands, two_folders, tmp_path, monkeypatch
+):
+    """Leave-one-camera-out with --adapt, twice: the second time the canon folder's ground truth is
+    poisoned (rows rotated, one light scaled 50x). The adapted model scoring canon (its bias map)
+    and its estimates there are bit-identical; the adapted prior moved off the trained one."""
+    import shutil
+
+    from ccjax.estimators import ffcc
+
+    biases = []
+    real = ffcc.adapt_bias
+
+    def spy(model, *args, **kwargs):
+        adapted, q = real(model, *args, **kwargs)
+        biases.append((np.asarray(model.bias), np.asarray(adapted.bias)))
+        return adapted, q
+
+    monkeypatch.setattr(ffcc, "adapt_bias", spy)
+    root = tmp_path / "sets"
+    shutil.copytree(two_folders, root)
+    argv = [a if a != "grey-edge-1-6-2" else "FFCC" for a in _loco(root)] + ["--adapt"]
+    assert cli.main([*argv, "--json", str(tmp_path / "a.json")]) == 0
+    truth = (root / "canon" / "groundtruth.csv").read_text().splitlines()
+    rows = truth[1:]
+    lights = [row.split(",", 1)[1] for row in rows]
+    poisoned = [row.split(",", 1)[0] + "," + lights[(index + 3) % len(rows)] for index, row in enumerate(rows)]
+    name, light = poisoned[0].split(",", 1)
+    poisoned[0] = name + "," + ",".join(str(50 * float(x)) for x in light.split(","))
+    (root / "canon" / "groundtruth.csv").write_text("\n".join([truth[0], *poisoned]) + "\n")
+    assert cli.main([*argv, "--json", str(tmp_path / "b.json")]) == 0
+    before, after = (json.loads((tmp_path / name).read_text()) for name in ("a.json", "b.json"))
+
+    # Rounds in folder order: canon scored first, in both runs.
+    assert len(biases) == 4
+    np.testing.assert_array_equal(biases[0][1], biases[2][1])
+    assert np.abs(biases[0][1] - biases[0][0]).max() > 1e-3  # the adaptation did move the prior
+
+    def estimates(report, label):
+        images = report["sets"]["canon"]["evaluation"]["images"]
+        return np.array([r["illuminant"] for r in images if r["method"] == label])
+
+    adapted = estimates(before, "FFCC adapted")
+    assert adapted.shape == (8, 3) and np.all(np.isfinite(adapted))
+    np.testing.assert_array_equal(adapted, estimates(after, "FFCC adapted"))
+    assert "light prior adapted to 8 unlabelled images of canon" in before["sets"]["canon"]["evaluation"]["training"][0]

@@ -120,6 +120,13 @@ def add_evaluate(sub) -> None:
         "(ccjax.training.render_examples; default 0)",
     )
     p.add_argument(
+        "--adapt",
+        action="store_true",
+        help="with --leave-one-camera-out --train FFCC: also score 'FFCC adapted', its light prior adapted to the "
+        "scored folder's unlabelled images (EM on its estimates, blended with the camera's loci through its "
+        "curves); the scored folder's ground truth is never read for it",
+    )
+    p.add_argument(
         "--epochs",
         type=int,
         default=None,
@@ -248,8 +255,10 @@ def check_folds(args) -> None:
             raise ValueError("--leave-one-camera-out: needs at least two folders, each with --camera-for DIR=CAMERA")
         if args.models is not None:
             raise ValueError("--models: writes the fold models of --folds K --train; not with --leave-one-camera-out")
-    elif args.camera_map != "per-light" or args.rendered:
-        raise ValueError("--camera-map, --rendered: apply to --leave-one-camera-out only")
+        if args.adapt and "FFCC" not in args.train:
+            raise ValueError("--adapt: adapts FFCC's light prior; give --train FFCC")
+    elif args.camera_map != "per-light" or args.rendered or args.adapt:
+        raise ValueError("--camera-map, --rendered, --adapt: apply to --leave-one-camera-out only")
     if args.rendered < 0:
         raise ValueError(f"--rendered: expected a non-negative number of images, got {args.rendered}")
     if args.epochs is not None:
@@ -292,7 +301,7 @@ def evaluation_values(args, cameras: dict[str, str | None], pretraining):
         for directory, truth in zip(args.directories, ground_truths(args), strict=True)
     ]
     if args.leave_one_camera_out:
-        protocol = evaluation.LeaveOneCameraOut(tuple(args.train), args.camera_map, args.rendered)
+        protocol = evaluation.LeaveOneCameraOut(tuple(args.train), args.camera_map, args.rendered, args.adapt)
     elif args.train:
         protocol = evaluation.TrainedInFolds(args.folds, tuple(args.train))
     else:

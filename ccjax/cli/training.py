@@ -89,6 +89,13 @@ def add_train(sub) -> None:
         metavar="N",
         help="with --target-camera: also train on N images rendered through its curves (default 0)",
     )
+    p.add_argument(
+        "--adapt-on",
+        default=None,
+        metavar="DIR",
+        help="with --target-camera and --method FFCC: adapt the light prior to this folder of the target "
+        "camera's unlabelled images (EM on their estimates, blended with the camera's loci); no labels read",
+    )
     p.add_argument("--ground-truth", default=None, help="CSV image,r,g,b[,fold] (default: DIR/groundtruth.csv)")
     p.add_argument("--method", required=True, help="registry label, e.g. RGB-C-by-C-MMSE")
     p.add_argument("--folds", type=int, default=None, help="cross-validate with K folds first")
@@ -165,8 +172,10 @@ def run_train(args) -> int:
 
     if args.target_camera is not None or len(args.directory) > 1:
         return run_train_for_camera(args)
-    if args.camera_for or args.ground_truth_name or args.camera_map != "per-light" or args.rendered:
-        raise ValueError("--camera-for, --ground-truth-name, --camera-map, --rendered: apply with --target-camera")
+    if args.camera_for or args.ground_truth_name or args.camera_map != "per-light" or args.rendered or args.adapt_on:
+        raise ValueError(
+            "--camera-for, --ground-truth-name, --camera-map, --rendered, --adapt-on: apply with --target-camera"
+        )
     args.directory = args.directory[0] if args.directory else None
     if args.directory is None:
         if args.method not in NETS and not args.specular:
@@ -263,6 +272,11 @@ def run_train_for_camera(args) -> int:
         )
     if args.rendered < 0:
         raise ValueError(f"--rendered: expected a non-negative number of images, got {args.rendered}")
+    if args.adapt_on is not None:
+        if args.method != "FFCC":
+            raise ValueError(f"--adapt-on: adapts FFCC's light prior; got --method {args.method}")
+        if not Path(args.adapt_on).is_dir():
+            raise ValueError(f"--adapt-on: not a folder: {args.adapt_on}")
     start_processes()
     check_camera(args.target_camera, args.data_dir, "--target-camera")
     for entry in args.camera_for:
@@ -285,6 +299,7 @@ def run_train_for_camera(args) -> int:
             rendered=args.rendered,
             read=read,
             options=options,
+            adapt_on=args.adapt_on,
             progress=not args.no_progress,
             log=lambda line: print(line, file=sys.stderr),
         )
@@ -294,6 +309,7 @@ def run_train_for_camera(args) -> int:
         f"{args.method} for the {args.target_camera}: trained on {record['images']} images "
         f"({', '.join(f'{k} {v}' for k, v in record['source_images'].items())}; {args.camera_map} maps) "
         f"in {log.seconds:.1f} s"
+        + (f"; light prior adapted to {record['adapted_on']['images']} unlabelled images" if args.adapt_on else "")
     )
     if args.out:
         from ccjax.runs import store

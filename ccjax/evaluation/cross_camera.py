@@ -12,6 +12,7 @@ through the scored camera's curves, and the learned methods trained on the pool.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 
 import equinox as eqx
@@ -24,6 +25,7 @@ from ccjax.evaluation.sets import FolderSet
 from ccjax.world import World
 
 __all__ = [
+    "ADAPTED_SUFFIX",
     "CAMERA_MAPS",
     "LeaveOneCameraOut",
     "TrainOn",
@@ -32,6 +34,9 @@ __all__ = [
     "train_on_pool",
     "train_pooled",
 ]
+
+ADAPTED_SUFFIX = " adapted"
+"""The label suffix of a trained model adapted to the scored folder's unlabelled images."""
 
 CAMERA_MAPS = ("global", "per-light")
 """The camera-to-camera maps a pooled training can use (:func:`ccjax.transfer.fit_camera_map`)."""
@@ -67,11 +72,15 @@ class LeaveOneCameraOut(AbstractProtocol):
         train: the labels trained on the pool (e.g. ``("FFCC",)``).
         camera_map: ``"per-light"`` (the map of each image's own light) or ``"global"`` (one 3x3).
         rendered: images rendered through the scored camera's curves pooled in (0: none).
+        adapt: also score each trained FFCC with its light prior adapted to the scored folder's
+            *unlabelled* images (label ``"<label> adapted"``, :func:`adapt_to_images`; its ground
+            truth is never read).
     """
 
     train: tuple[str, ...] = eqx.field(static=True)
     camera_map: str = eqx.field(static=True, default="per-light")
     rendered: int = eqx.field(static=True, default=0)
+    adapt: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self) -> None:
         _check(self.train, self.camera_map, self.rendered)
@@ -92,7 +101,18 @@ class LeaveOneCameraOut(AbstractProtocol):
 
     def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
         return train_on_pool(
-            data, training, methods, trained, world, read, options, self.camera_map, self.rendered, progress, log
+            data,
+            training,
+            methods,
+            trained,
+            world,
+            read,
+            options,
+            self.camera_map,
+            self.rendered,
+            progress,
+            log,
+            adapt=self.adapt,
         )
 
 
@@ -184,6 +204,8 @@ def train_on_pool(
     rendered: int,
     progress: bool,
     log: Callable[[str], None] | None,
+    *,
+    adapt: bool = False,
 ) -> FolderModels:
     """The scored folder's models: ``methods`` fitted to its world, ``trained`` trained on the
     training folders mapped into its camera (and ``rendered`` images of its camera).
@@ -196,6 +218,8 @@ def train_on_pool(
         rendered: images rendered through the target's curves pooled in.
         progress: progress bars.
         log: a line per training.
+        adapt: adapt each trained FFCC to the scored folder's images, never its ground truth
+            (:func:`adapt_to_images`).
 
     Returns:
         :class:`~ccjax.evaluation.folders.FolderModels` (no folds; a training note per label).
@@ -215,9 +239,80 @@ def train_on_pool(
     for label in trained:
         model, record, images = train_pooled(label, pool, world, read, options, rendered, progress=progress, log=log)
         models[label + TRAINED_SUFFIX] = [model]
+        if adapt and label == "FFCC":  # scored beside the model it adapts: the zero-adaptation figure in the same run
+            lights = pool.lights()[pool.usable()]
+            models[label + ADAPTED_SUFFIX] = [
+                adapt_to_images(model, data.source, target, lights, read, seed=options.seed, progress=progress)
+            ]
         extra = f" and {rendered} rendered through {target}'s curves" if rendered else ""
+        if adapt:
+            extra += f"; light prior adapted to {len(data.source.usable())} unlabelled images of {data.label}"
         notes.append(f"{label} trained on {images} images of {parts}{extra} in {record.seconds:.1f} s")
     return FolderModels(models, training_notes=notes)
+
+
+def adapt_to_images(
+    model,
+    images,
+    target: str,
+    training_lights,
+    read: ReadOptions,
+    *,
+    seed: int = 0,
+    options=None,
+    progress: bool = False,
+):
+    """``model`` (a trained FFCC) with its light prior adapted to the target camera: the target's
+    *unlabelled* images estimated by the model, the prior re-weighted toward their lights by EM
+    and blended with the target's Planckian and daylight loci rendered through its curves
+    (:func:`ccjax.estimators.ffcc.adapt_bias`). Only the images are read, never a ground truth.
+
+    Arguments:
+        model: the trained model (an :class:`~ccjax.estimators.ffcc.FFCC`; other models refused).
+        images: the target's images (:func:`ccjax.runs.sources.image_folder`), any labels unread.
+        target: the target camera (its curves give the loci).
+        training_lights: ``(S, 3)`` the lights the model was trained on, in the target's raw space.
+        read: the inputs' preparation (as the training's).
+        seed: the target world's seed.
+        options: :class:`~ccjax.estimators.ffcc.AdaptOptions` (default: its defaults).
+        progress: a progress bar while reading.
+
+    Returns:
+        The adapted model.
+
+    Raises:
+        ValueError: a model other than FFCC, or no usable image.
+    """
+    import numpy as np
+
+    from ccjax import training as learning
+    from ccjax.estimators import ffcc
+    from ccjax.estimators.neural import log_chroma
+    from ccjax.preprocessing import resolve
+    from ccjax.runs import store
+    from ccjax.transfer import locus_lights
+
+    if not isinstance(model, ffcc.FFCC):
+        raise ValueError(f"adapt: adapts FFCC's light prior only, got {type(model).__name__}")
+    rule = resolve(model, read.preprocessing)
+    items = images.usable()
+    # The labels are never read: every image is given the same placeholder light.
+    placeholder = np.ones((len(images), 3), np.float32)
+    names = [str(path) for path in images.paths]
+    examples, _ = learning.source_examples(
+        images, placeholder, names, model.input_kind, rule, items=items, dark=read.dark, progress=progress
+    )
+    histograms = ffcc.histograms(model, examples.x, examples.mask)
+    camera = store.world("default", target, seed=seed).camera
+    loci = np.asarray(locus_lights(), np.float64) @ np.asarray(camera.sensors, np.float64)
+    adapted, _ = ffcc.adapt_bias(
+        model,
+        histograms,
+        log_chroma(jnp.asarray(training_lights, jnp.float32)),
+        log_chroma(jnp.asarray(loci, jnp.float32)),
+        options or ffcc.AdaptOptions(),
+    )
+    return adapted
 
 
 def train_pooled(
@@ -286,6 +381,7 @@ def train_for_camera(
     rendered: int = 0,
     read: ReadOptions | None = None,
     options: TrainingOptions | None = None,
+    adapt_on: str | os.PathLike | None = None,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
 ):
@@ -301,6 +397,8 @@ def train_for_camera(
         rendered: images rendered through the target's curves pooled in.
         read: how images are read and prepared (default :class:`ReadOptions`).
         options: seed, epochs, pretraining (default :class:`TrainingOptions`).
+        adapt_on: a folder of the target camera's *unlabelled* images: FFCC's light prior adapted
+            to them (:func:`adapt_to_images`; a ground-truth file there is never read).
         progress: progress bars.
         log: a line per folder and before the training.
 
@@ -332,6 +430,16 @@ def train_for_camera(
     world = store.world("default", target, seed=options.seed)
     pool = pooled_source(data, target, camera_map, seed=options.seed)
     model, record, images = train_pooled(label, pool, world, read, options, rendered, progress=progress, log=log)
+    adapted = None
+    if adapt_on is not None:
+        from ccjax.runs.sources import image_folder, raise_failures
+
+        unlabelled = image_folder(adapt_on, masks=read.masks, read_options=read.image, max_pixels=read.max_pixels)
+        if not unlabelled.usable():
+            raise_failures(list(unlabelled.failures.values()), len(unlabelled))
+        lights = pool.lights()[pool.usable()]
+        model = adapt_to_images(model, unlabelled, target, lights, read, seed=options.seed, progress=progress)
+        adapted = {"directory": str(adapt_on), "images": len(unlabelled.usable())}
     facts = {
         "target_camera": target,
         "camera_map": camera_map,
@@ -343,5 +451,6 @@ def train_for_camera(
         "rendered": rendered,
         "images": images,
         "seed": options.seed,
+        "adapted_on": adapted,
     }
     return model, record, facts

@@ -10,7 +10,8 @@ L-BFGS in the paper's preconditioned Fourier parametrisation with its total-vari
 regularisers; ``ccjax train --method FFCC`` and ``ccjax evaluate --train FFCC`` run it.
 """
 
-from ccjax.estimators.ffcc._fitting import Hyperparameters, TrainingRecord, train
+from ccjax.estimators.ffcc._adapt import AdaptOptions, adapt_bias, light_density
+from ccjax.estimators.ffcc._fitting import Hyperparameters, TrainingRecord, histograms, train
 from ccjax.estimators.ffcc._histogram import MINIMUM_INTENSITY, featurize, local_absolute_deviation, wrapped_histogram
 from ccjax.estimators.ffcc._model import BIN_SIZE, BINS, FFCC, ORIGIN, Posterior, convolve, uv_to_rgb
 from ccjax.estimators.ffcc._selection import CANDIDATES, choose
@@ -24,15 +25,19 @@ __all__ = [
     "FFCC",
     "MINIMUM_INTENSITY",
     "ORIGIN",
+    "AdaptOptions",
     "Hyperparameters",
     "Posterior",
     "TrainingRecord",
+    "adapt_bias",
     "choose",
     "convolve",
     "featurize",
     "fit_von_mises",
     "gaussian_nll",
+    "histograms",
     "init_ffcc",
+    "light_density",
     "local_absolute_deviation",
     "train",
     "uv_to_rgb",
