@@ -59,3 +59,14 @@ def test_bad_input_keeps_exit_two_and_the_plain_line(monkeypatch, capsys):
     monkeypatch.setattr(cli, "build_parser", lambda parser=cli.build_parser: _with_func(parser(), bad))
     assert cli.main(["world"]) == 2
     assert capsys.readouterr().err == "ccjax world: error: --scenes: expected a positive integer, got 0\n"
+
+
+def test_the_place_is_in_the_installed_package_not_in_a_folder_named_ccjax():
+    # A clone named ccjax holds tests and scripts: a frame there is not a place in the package.
+    namespace: dict = {}
+    exec(compile("def broken():\n    return {}['k']\n", "/elsewhere/ccjax/tests/fake.py", "exec"), namespace)
+    try:
+        namespace["broken"]()
+    except KeyError as error:
+        line = cli.unexpected_error_line("world", error)
+    assert " at fake.py:2: 'k' " in line and "ccjax/tests" not in line

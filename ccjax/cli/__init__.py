@@ -227,14 +227,19 @@ def unexpected_error_line(command: str | None, error: Exception) -> str:
     Returns:
         ``"ccjax CMD: error: unexpected TypeName at ccjax/FILE.py:LINE: message (...)"``.
     """
+    # The place is the deepest frame in the installed package, found by its directory rather than
+    # by a "ccjax" path segment: a clone named ccjax holds tests and scripts that are not ccjax.
+    package = pathlib.Path(__file__).resolve().parent.parent
     frames = traceback.extract_tb(error.__traceback__)
-    inside = [frame for frame in frames if f"{os.sep}ccjax{os.sep}" in frame.filename] or frames
     place = ""
-    if inside:
-        frame = inside[-1]
-        parts = pathlib.PurePath(frame.filename).parts
-        start = len(parts) - 1 - parts[::-1].index("ccjax") if "ccjax" in parts else len(parts) - 1
-        place = f" at {'/'.join(parts[start:])}:{frame.lineno}"
+    for frame in reversed(frames):
+        path = pathlib.Path(frame.filename).resolve()
+        if path.is_relative_to(package):
+            place = f" at ccjax/{path.relative_to(package).as_posix()}:{frame.lineno}"
+            break
+    else:
+        if frames:
+            place = f" at {pathlib.Path(frames[-1].filename).name}:{frames[-1].lineno}"
     message = " ".join(str(error).split())[:300] or "(no message)"
     return (
         f"{prefix(command)}: error: unexpected {type(error).__name__}{place}: {message} "
