@@ -133,10 +133,15 @@ def test_every_navigation_page_exists(hooks):
 EXTRAS = {"cv2": "opencv-contrib-python-headless (the test extra)", "rawpy": "rawpy (the raw extra)"}
 """Modules that documented blocks may import from an optional extra, and what installs each."""
 
-SLOW_PAGES = {"docs/getting-started.md": 32, "docs/photographs.md": 44, "docs/camera-without-labels.md": 30}
-"""Pages whose blocks take long (seconds measured on 2 shared CPU cores): a sweep of 1,000 scenes;
-FFCC trained on 16 images; two cameras' worlds, maps and a leave-one-camera-out run. They run with
-the slow suite."""
+SLOW_PAGES = {
+    "README.md": 40,
+    "docs/getting-started.md": 32,
+    "docs/photographs.md": 44,
+    "docs/camera-without-labels.md": 30,
+}
+"""Pages whose blocks take long (seconds measured on 2 shared CPU cores): the README's tour and a
+sweep of 1,000 scenes; FFCC trained on 16 images; two cameras' worlds, maps and a leave-one-camera-out
+run. They run with the slow suite."""
 
 PAGES = [
     pytest.param(page, marks=pytest.mark.slow) if page in SLOW_PAGES else page

@@ -80,6 +80,7 @@ def check_learn_correlation(out: str, gamut: tuple[str, ...]) -> None:
         assert 0 < median < 30 and mean <= worst, method
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_learn_correlation_quick():
     # --quick leaves the gamut methods out (their kernel's compilation is a third of the run).
     check_learn_correlation(run_example("learn_correlation.py", "--quick"), ())
@@ -99,6 +100,7 @@ def check_learned_sharpening(out: str) -> None:
     assert max(gw_angles) - min(gw_angles) < 1e-2, gw_angles
 
 
+@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
 def test_learned_sharpening_quick():
     check_learned_sharpening(run_example("learned_sharpening.py", "--quick"))
 
