@@ -90,7 +90,8 @@ def main() -> None:
             truth, image = write_folder(work / "folder", args.images)
             argvs = {
                 "compare": ["compare", "--plot", "compare.png", "--overwrite", "--no-progress"],
-                "evaluate": ["evaluate", str(truth.parent), "--methods", "GW", "--no-progress"],
+                "evaluate": ["evaluate", str(truth.parent), "--ground-truth", str(truth), "--methods", "GW"]
+                + ["--no-progress"],
                 "estimate": ["estimate", str(image), "--method", "GW", "--no-progress"],
             }
             trees = {f"base {base[:8]}": base_tree, f"head {git('rev-parse', '--short=8', 'HEAD')}": ROOT}

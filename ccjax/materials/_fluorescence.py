@@ -95,7 +95,6 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
-from scipy.optimize import nnls
 
 from ccjax.precision import einsum
 from ccjax.spectra import WAVELENGTHS
@@ -263,11 +262,13 @@ def _nnls(matrix: np.ndarray, target: np.ndarray) -> np.ndarray:
     (older releases allowed more); an ill-conditioned basis can need more, so the iteration cap is
     raised, and the bounded least squares (``lsq_linear``, BVLS: the same problem) answers where
     even that is not enough."""
+    # Imported here: scipy.optimize takes about half a second to import, and every command that
+    # draws scenes imports this module without fitting a characterisation.
+    from scipy.optimize import lsq_linear, nnls
+
     try:
         return nnls(matrix, target, maxiter=100 * matrix.shape[1])[0]
     except RuntimeError:
-        from scipy.optimize import lsq_linear
-
         return lsq_linear(matrix, target, bounds=(0.0, np.inf), method="bvls").x
 
 

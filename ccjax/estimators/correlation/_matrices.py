@@ -4,8 +4,6 @@ and the 0/1 hull matrix of §4.5.4, and the 3-D (r, g, L) matrix of chapter 10."
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
-from scipy.spatial import ConvexHull, QhullError
 
 from ccjax.estimators.correlation._binning import RG_BINS, compact_rg_cells, rg_bins_np
 from ccjax.scenes import Specular
@@ -69,6 +67,8 @@ def training_responses(
 def _log_of_smoothed(counts: np.ndarray, sigma: tuple[float, ...], floor: float) -> np.ndarray:
     """Per illuminant (axis 0): Gaussian smoothing (``sigma`` in bins per remaining axis), normalise
     to probabilities, floor at ``floor`` x the illuminant's largest probability, log (§4.5.4)."""
+    from scipy.ndimage import gaussian_filter  # imported on use: slow to import
+
     counts = np.asarray(counts, np.float32)  # float32: the 3-D matrices are tens of millions of cells
     if any(s > 0 for s in sigma):
         counts = gaussian_filter(counts, sigma=(0.0, *sigma), mode="constant", truncate=4.0, output=np.float32)
@@ -120,6 +120,8 @@ def hull_matrix(world: World) -> np.ndarray:
     Arguments:
         world: the world (reflectances, training illuminants, camera).
     """
+    from scipy.spatial import ConvexHull, QhullError  # imported on use: slow to import
+
     rgb, _, _ = training_responses(world)
     i, j = np.divmod(np.arange(RG_BINS * RG_BINS), RG_BINS)
     centres = (np.stack([i, j], axis=1) + 0.5) / RG_BINS

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from ccjax._colour import rg_numpy
 
@@ -52,6 +51,8 @@ def gamut_facets(points: np.ndarray) -> Facets:
         The facets; a facet is an origin facet iff its Qhull simplex contains the origin, and then
         its offset is set to exactly 0 (Qhull's is only ~1e-17).
     """
+    from scipy.spatial import ConvexHull  # imported on use: scipy.spatial is slow to import
+
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3 or len(points) < 3:
         raise ValueError(f"points: expected (S >= 3, 3) RGBs, got shape {points.shape}")
@@ -120,6 +121,8 @@ def cone_planes(directions: np.ndarray) -> np.ndarray:
     Returns:
         ``(L, 3)`` unit normals, one per face.
     """
+    from scipy.spatial import ConvexHull  # imported on use: scipy.spatial is slow to import
+
     directions = np.asarray(directions, np.float64)
     if directions.ndim != 2 or directions.shape[1] != 3 or len(directions) < 3:
         raise ValueError(f"directions: expected (N >= 3, 3) vectors, got shape {directions.shape}")
@@ -154,6 +157,8 @@ def map_cone_chromaticities(white: np.ndarray, whites: np.ndarray, samples: int 
     Returns:
         ``(E * samples, 2)`` chromaticities.
     """
+    from scipy.spatial import ConvexHull  # imported on use: scipy.spatial is slow to import
+
     maps = np.asarray(white, np.float64) / np.asarray(whites, np.float64)
     projected = maps / maps.sum(axis=1, keepdims=True)
     extreme = projected[ConvexHull(projected[:, :2]).vertices]
