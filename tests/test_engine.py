@@ -44,9 +44,10 @@ def _assert_same_errors(got: dict, expected: dict, approximate: bool = False) ->
 
 
 def test_errors_equal_the_primitives_on_the_same_scenes(default_world, models):
-    """The engine's cells are, bitwise, the jitted scene_errors of sample_batch on the sweep's keys
-    (a path through the scene primitives alone), with the brightness statistics only for 3-D
-    methods."""
+    """The engine's cells are the jitted scene_errors of sample_batch on the sweep's keys (a path
+    through the scene primitives alone), with the brightness statistics only for 3-D methods:
+    statuses bitwise, errors to float32 rounding (the engine computes a group of models'
+    statistics in one program, which XLA fuses, and so rounds, otherwise)."""
     key = jax.random.key(11)
     options = SceneOptions(scenes.Specular(), clip=300 / 255, metallic=scenes.Metallic())
     run = run_synthetic(default_world, models, [SyntheticSource(key, (8,), 50, options)], progress=False)
@@ -60,7 +61,7 @@ def test_errors_equal_the_primitives_on_the_same_scenes(default_world, models):
         if not model.estimates_brightness:
             assert set(got) == {"angular", "rg", "map_rg", "ok", "status"}
             expected = {name: value for name, value in expected.items() if name in got}
-        _assert_same_errors(got, expected)
+        _assert_same_errors(got, expected, approximate=True)
 
 
 def test_chunk_size_does_not_change_the_errors(default_world, models):

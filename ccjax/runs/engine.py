@@ -50,7 +50,12 @@ def scene_errors(model: AbstractEstimator, scenes: Scenes, canonical_white: Floa
         :class:`~ccjax.estimators.base.Status` codes).
     """
     estimate = estimate_batch(model, scenes.rgb, scenes.mask)
-    e, truth = estimate.illuminant, scenes.illuminant
+    return {**_statistics(estimate.illuminant, scenes, canonical_white), "ok": estimate.ok, "status": estimate.status}
+
+
+def _statistics(e: Float[Array, "B 3"], scenes: Scenes, canonical_white: Float[Array, " 3"]) -> dict[str, jax.Array]:
+    """The :data:`STATISTICS` of the estimates ``e`` of a batch's lights."""
+    truth = scenes.illuminant
     map_rg, map_rgb = metrics.mapping_errors(e, scenes.rgb, scenes.mask, scenes.canonical_rgb, canonical_white)
     return {
         "angular": metrics.angular_error(e, truth),
@@ -59,9 +64,40 @@ def scene_errors(model: AbstractEstimator, scenes: Scenes, canonical_white: Floa
         "brightness": metrics.brightness_error(e, truth),
         "map_rg": map_rg,
         "map_rgb": map_rgb,
-        "ok": estimate.ok,
-        "status": estimate.status,
     }
+
+
+def group_errors(
+    models: tuple[AbstractEstimator, ...], scenes: Scenes, canonical_white: Float[Array, " 3"], slots: int | None = None
+) -> dict[str, jax.Array]:
+    """:func:`scene_errors` of several models on one batch, as one program: the statistics are
+    written once and mapped over the models' estimates (so a group of cheap estimators costs one
+    compilation of the statistics, not one per estimator).
+
+    Arguments:
+        models: surface estimators.
+        scenes: a :class:`ccjax.scenes.Scenes` batch.
+        canonical_white: the canonical light's camera RGB.
+        slots: the models read the first ``slots`` surface slots of each scene (static; ``None``:
+            all of them), so batches drawn wider than a stream's padded size serve it.
+
+    Returns:
+        :data:`STATISTICS` names, ``"ok"`` and ``"status"`` -> ``(len(models), B)`` arrays, row
+        ``k`` being ``scene_errors(models[k], ...)``.
+    """
+    if slots is not None:
+        scenes = Scenes(
+            rgb=scenes.rgb[:, :slots],
+            mask=scenes.mask[:, :slots],
+            illuminant=scenes.illuminant,
+            canonical_rgb=scenes.canonical_rgb[:, :slots],
+        )
+    estimates = [estimate_batch(model, scenes.rgb, scenes.mask) for model in models]
+    illuminants = jnp.stack([estimate.illuminant for estimate in estimates])
+    errors = jax.vmap(lambda e: _statistics(e, scenes, canonical_white))(illuminants)
+    errors["ok"] = jnp.stack([estimate.ok for estimate in estimates])
+    errors["status"] = jnp.stack([estimate.status for estimate in estimates])
+    return errors
 
 
 def applicable(model: AbstractEstimator, errors: dict) -> dict:
@@ -78,7 +114,9 @@ def applicable(model: AbstractEstimator, errors: dict) -> dict:
     return {name: value for name, value in errors.items() if model.estimates_brightness or name not in RGB_VALUED}
 
 
-_errors_program = eqx.filter_jit(scene_errors)
+_group_program = eqx.filter_jit(
+    group_errors,
+)
 
 
 class Placement:
@@ -172,10 +210,12 @@ class Stream:
             placed on the devices.
         maker: a key of the program ``make`` runs: streams with equal keys share it (it is
             compiled once, ahead, by making the first chunk of the first of them).
-        shape: a key of the batch's shapes and dtypes: streams with equal keys share the
-            models' errors programs.
+        shape: a key of the batch's shapes and dtypes: streams with equal keys (and equal
+            ``slots``) share the models' errors programs.
         positions: indices of the models to run.
         canonical_white: the canonical light's camera RGB (mapping errors).
+        slots: the models read the first ``slots`` surface slots of each item (``None``: all), so
+            one maker drawing wide batches serves streams padded to several sizes.
     """
 
     n_items: int
@@ -185,11 +225,37 @@ class Stream:
     shape: Hashable
     positions: tuple[int, ...]
     canonical_white: Float[Array, " 3"]
+    slots: int | None = None
 
     @property
     def n_chunks(self) -> int:
         """Chunks in the stream."""
         return -(-self.n_items // self.size)
+
+
+GROUP_SIZE = 8
+"""At most this many models without a size branch share one errors program."""
+
+
+def program_groups(models: Sequence[AbstractEstimator], positions: Sequence[int]) -> list[tuple[int, ...]]:
+    """The models of ``positions`` as the groups that share an errors program (:func:`group_errors`).
+
+    Models without a size branch (:attr:`~ccjax.estimators.base.AbstractEstimator.padding`
+    without budgets: the statistics and correlation families) are cheap to compile apart from the
+    statistics they share, so they go together, up to :data:`GROUP_SIZE` in a group; a model with
+    size branches (the gamut family) is a large program of its own, compiled beside the others.
+
+    Arguments:
+        models: the fitted models.
+        positions: indices into ``models``.
+
+    Returns:
+        Groups of positions, in order of first position; every position in exactly one.
+    """
+    plain = [position for position in positions if not models[position].padding.budgets]
+    groups = [tuple(plain[start : start + GROUP_SIZE]) for start in range(0, len(plain), GROUP_SIZE)]
+    groups += [(position,) for position in positions if models[position].padding.budgets]
+    return sorted(groups)
 
 
 def run_streams(
@@ -221,24 +287,23 @@ def run_streams(
         :func:`applicable` :func:`scene_errors`).
     """
     x64 = bool(jax.config.read("jax_enable_x64"))
-    zeros: dict[Hashable, Scenes] = {}
 
     def compile_maker(stream: Stream) -> None:
         with jax.enable_x64(x64):  # the caller's setting (a context is per thread)
             stream.make(0)
 
-    def compile_errors(position: int, stream: Stream):
-        # On one device from zeros of the batch's shapes, so that it does not wait for the
-        # maker to compile; sharded, from the first chunk (whose layout the maker decides).
+    def compile_errors(group: tuple[int, ...], stream: Stream):
+        # On one device from host zeros of the batch's shapes (no program builds them), so that it
+        # does not wait for the maker to compile; sharded, from the first chunk (whose layout the
+        # maker decides).
         with jax.enable_x64(x64):
             if placement.sharding is None:
-                if stream.shape not in zeros:
-                    shapes = jax.eval_shape(lambda: stream.make(0))
-                    zeros[stream.shape] = jax.tree.map(lambda leaf: jnp.zeros(leaf.shape, leaf.dtype), shapes)
-                batch = zeros[stream.shape]
+                shapes = jax.eval_shape(lambda: stream.make(0))
+                batch = jax.tree.map(lambda leaf: np.zeros(leaf.shape, leaf.dtype), shapes)
             else:
                 batch = stream.make(0)
-            return _errors_program.lower(models[position], batch, stream.canonical_white).compile()
+            group_models = tuple(models[position] for position in group)
+            return _group_program.lower(group_models, batch, stream.canonical_white, stream.slots).compile()
 
     results: list[dict[int, dict[str, np.ndarray]]] = []
     bar = tqdm(
@@ -252,27 +317,38 @@ def run_streams(
     try:
         makers: dict[Hashable, concurrent.futures.Future] = {}
         programs: dict[tuple, concurrent.futures.Future] = {}
+        # In the order the streams need them, and within a stream the models with size branches
+        # (the largest programs) first, so that the other worker compiles the rest meanwhile.
+        pending = [
+            (group, stream)
+            for stream in streams
+            for group in sorted(
+                program_groups(models, stream.positions),
+                key=lambda group: not any(models[position].padding.budgets for position in group),
+            )
+        ]
         for stream in streams:
-            if not stream.positions:
-                continue
-            if stream.maker not in makers:
+            if stream.positions and stream.maker not in makers:
                 makers[stream.maker] = compiler.submit(compile_maker, stream)
-            for position in stream.positions:
-                if (position, stream.shape) not in programs:
-                    programs[position, stream.shape] = compiler.submit(compile_errors, position, stream)
+        for group, stream in pending:
+            key = (group, stream.shape, stream.slots)
+            if key not in programs:
+                programs[key] = compiler.submit(compile_errors, group, stream)
         for stream in streams:
             collected: dict[int, list[dict]] = {position: [] for position in stream.positions}
             if stream.positions:
                 # Until its programs are compiled a stream's first chunk waits: say so.
                 bar.set_postfix_str("compiling")
                 makers[stream.maker].result()
+                groups = program_groups(models, stream.positions)
                 for index in range(stream.n_chunks):
                     batch = stream.make(index)
-                    for position in stream.positions:
-                        program = programs[position, stream.shape].result()
-                        collected[position].append(
-                            placement.fetch(program(models[position], batch, stream.canonical_white))
-                        )
+                    for group in groups:
+                        program = programs[group, stream.shape, stream.slots].result()
+                        group_models = tuple(models[position] for position in group)
+                        errors = placement.fetch(program(group_models, batch, stream.canonical_white, stream.slots))
+                        for row, position in enumerate(group):
+                            collected[position].append({name: value[row] for name, value in errors.items()})
                     bar.set_postfix_str("", refresh=False)
                     bar.update()
             results.append(

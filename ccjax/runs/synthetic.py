@@ -20,7 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import ArrayLike, Float
+from jaxtyping import Array, ArrayLike, Float, Int
 
 from ccjax import limits, scenes
 from ccjax._cache import code_fingerprint, content_key
@@ -33,6 +33,11 @@ from ccjax.world import World
 MAX_PADDING = 2
 """:func:`padded_sizes` pads a surface count to at most this factor times itself where the
 padded slots cost what real ones do."""
+
+SHARED_SAMPLER_SLOTS = 64
+"""Counts padded to at most this many slots are drawn by one sampler program as wide as the
+largest of them (drawing a few dozen more surfaces costs far less than compiling a sampler), and
+each stream's models read its own padded width of the batch."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,30 +190,92 @@ def _sample(keys, tables: SceneTables, n_surfaces: int, options: SceneOptions) -
     )
 
 
-def _sample_slots(keys, tables: SceneTables, n_surfaces: int, slots: int, options: SceneOptions) -> Scenes:
+def _sample_slots(
+    keys, tables: SceneTables, n_surfaces: int | Int[Array, ""], slots: int, options: SceneOptions
+) -> Scenes:
     count = jnp.asarray(n_surfaces, jnp.int32)
     return scenes.sample_batch_slots(
         keys, tables, count, slots, options.specular, options.noise, options.clip, options.metallic, options.fluorescent
     )
 
 
+def sampler_widths(source: SyntheticSource, sizes: dict[int, int], chunk_sizes: dict[int, int]) -> dict[int, int]:
+    """The width each count's batches are drawn at: its padded size, or, for the counts that can
+    share one sampler program, the widest of their padded sizes.
+
+    Counts share when their draws are bitwise those of their own width: JAX's threefry is
+    partitionable (a wider draw's random bits extend a narrower one's) and the scenes have at most
+    one rendering option (:func:`~ccjax.scenes.sample_batch_slots`: with several, another width
+    may round their sums otherwise); and when their chunks are equal and their padded sizes at
+    most :data:`SHARED_SAMPLER_SLOTS` (so memory and the sampler's work stay those of a small
+    scene).
+
+    Arguments:
+        source: the source.
+        sizes: count -> padded size (:func:`padded_sizes`).
+        chunk_sizes: count -> scenes per chunk.
+
+    Returns:
+        count -> sampler width (``>= sizes[count]``).
+    """
+    options = source.options
+    n_options = sum(
+        value is not None
+        for value in (options.specular, options.noise, options.clip, options.metallic, options.fluorescent)
+    )
+    partitionable = bool(jax.config.jax_threefry_partitionable)  # pyright: ignore[reportAttributeAccessIssue]
+    widths = dict(sizes)
+    if partitionable and n_options <= 1:
+        for chunk in set(chunk_sizes.values()):
+            small = [n for n in source.surfaces if chunk_sizes[n] == chunk and sizes[n] <= SHARED_SAMPLER_SLOTS]
+            if len(small) > 1:
+                widths.update({n: max(sizes[m] for m in small) for n in small})
+    return widths
+
+
+@eqx.filter_jit
+def _draw(key, count, start, size: int, tables: SceneTables, slots: int | None, options: SceneOptions) -> Scenes:
+    """A chunk's scenes from the sweep key, keys derived in the same program: ``size`` scenes from
+    position ``start`` (traced) of the stream of ``count``-surface scenes, drawn as themselves
+    (``slots`` None, ``count`` static) or in ``slots`` slots (``count`` traced: one program for
+    every count and chunk)."""
+    keys = scenes.sweep_keys(key, count, start, size)
+    if slots is None:
+        return _sample(keys, tables, count, options)
+    return _sample_slots(keys, tables, count, slots, options)
+
+
 def _maker(source: SyntheticSource, tables: SceneTables, n: int, slots: int, shared: bool, size: int, placement):
-    """The chunk maker of count ``n`` and the key of its program. A count alone in its padded size
-    is sampled as itself (:func:`~ccjax.scenes.sample_batch`); counts padded alike share one
-    program of ``slots`` slots (the scenes of :func:`~ccjax.scenes.sample_batch_slots` extend a
-    shorter draw's random bits, which needs partitionable threefry; else one program each)."""
+    """The chunk maker of count ``n`` and the key of its program. A count alone in its sampler
+    width is sampled as itself (:func:`~ccjax.scenes.sample_batch`); counts drawn at one width
+    share one program of ``slots`` slots (the scenes of :func:`~ccjax.scenes.sample_batch_slots`
+    extend a shorter draw's random bits, which needs partitionable threefry; else one program
+    each). On one device the keys are derived in the sampler's program; over a mesh they are
+    derived first and sharded, and the sampler runs on the shards."""
     options = source.options
     materials = (options.metallic is not None, options.fluorescent is not None)
     partitionable = bool(jax.config.jax_threefry_partitionable)  # pyright: ignore[reportAttributeAccessIssue]
-    if not shared:
-        sample, program = (lambda keys: _sample(keys, tables, n, options)), ("count", n)
-    elif partitionable:
-        sample, program = (lambda keys: _sample_slots(keys, tables, n, slots, options)), ("slots", slots)
-    else:
-        sample, program = (lambda keys: _sample_padded(keys, tables, n, slots, options)), ("padded", n, slots)
+    if shared and not partitionable:
+        program = ("padded", n, slots)
 
-    def make(index: int) -> Scenes:
-        return sample(placement.place(scenes.sweep_keys(source.key, n, index * size, size)))
+        def make(index: int) -> Scenes:
+            keys = placement.place(scenes.sweep_keys(source.key, n, index * size, size))
+            return _sample_padded(keys, tables, n, slots, options)
+
+    elif placement.mesh is not None:
+        program = ("slots", slots) if shared else ("count", n)
+
+        def make(index: int) -> Scenes:
+            keys = placement.place(scenes.sweep_keys(source.key, n, index * size, size))
+            return _sample_slots(keys, tables, n, slots, options) if shared else _sample(keys, tables, n, options)
+
+    else:
+        program = ("drawn", slots) if shared else ("drawn", "count", n)
+        # A shared program takes the count as an array (traced); a count of its own is static.
+        count = np.int32(n) if shared else n
+
+        def make(index: int) -> Scenes:
+            return _draw(source.key, count, np.uint32(index * size), size, tables, slots if shared else None, options)
 
     return make, (*program, size, options, materials)
 
@@ -294,8 +361,10 @@ def run_synthetic(
             tables[tables_key] = scene_tables(world, source.options, source.metals, source.fluorescent_surfaces)
         table = tables[tables_key]
         sizes = padded_sizes(source.surfaces, models)
+        chunk_sizes = {n: chunking(source.n_scenes, sizes[n], chunk_size, placement.n_devices)[0] for n in sizes}
+        widths = sampler_widths(source, sizes, chunk_sizes)
         for n in source.surfaces:
-            size, _ = chunking(source.n_scenes, sizes[n], chunk_size, placement.n_devices)
+            size = chunk_sizes[n]
             if cache and mesh is None:
                 common = (
                     world,
@@ -317,10 +386,13 @@ def run_synthetic(
                         if stored is not None:
                             cells[index, n, position] = stored
                         cell_keys[index, n, position] = cell_key
-            shared = sum(sizes[m] == sizes[n] for m in set(source.surfaces)) > 1
-            make, maker = _maker(source, table, n, sizes[n], shared, size, placement)
+            shared = sum(widths[m] == widths[n] for m in set(source.surfaces)) > 1
+            make, maker = _maker(source, table, n, widths[n], shared, size, placement)
             todo = tuple(p for p in range(len(models)) if (index, n, p) not in cells)
-            streams.append(Stream(source.n_scenes, size, make, maker, (sizes[n], size), todo, table.canonical_white))
+            slots = sizes[n] if sizes[n] < widths[n] else None
+            streams.append(
+                Stream(source.n_scenes, size, make, maker, (widths[n], size), todo, table.canonical_white, slots)
+            )
     from_cache = len(cells)
     plan = [(index, n) for index, source in enumerate(sources) for n in source.surfaces]
     computed_streams = run_streams(models, streams, placement, progress=progress, desc=desc)

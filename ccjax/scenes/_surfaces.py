@@ -30,7 +30,7 @@ from typing import SupportsIndex
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, UInt32
+from jaxtyping import Array, ArrayLike, Bool, Float, Int, Integer, Key, PRNGKeyArray, UInt32
 
 from ccjax import limits
 from ccjax.scenes._options import (
@@ -311,29 +311,35 @@ def sample_batch_slots(
     )
 
 
-def scene_keys(key: PRNGKeyArray, start: int, count: int) -> SceneKeys:
+def scene_keys(key: PRNGKeyArray, start: int | Integer[ArrayLike, ""], count: int) -> SceneKeys:
     """Keys of scenes ``start .. start+count-1`` of a stream: independent of how it is chunked.
 
     Arguments:
         key: the stream's key.
-        start: index of the first scene.
-        count: number of scenes.
+        start: index of the first scene (may be traced, so one program serves every chunk).
+        count: number of scenes (static).
 
     Returns:
         ``(count,)`` keys.
     """
-    return jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(start, start + count, dtype=jnp.uint32))
+    if isinstance(start, int):
+        indices = jnp.arange(start, start + count, dtype=jnp.uint32)
+    else:
+        indices = jnp.arange(count, dtype=jnp.uint32) + jnp.asarray(start, jnp.uint32)
+    return jax.vmap(lambda i: jax.random.fold_in(key, i))(indices)
 
 
-def sweep_keys(key: PRNGKeyArray, n_surfaces: int, start: int, count: int) -> SceneKeys:
+def sweep_keys(
+    key: PRNGKeyArray, n_surfaces: int | Integer[ArrayLike, ""], start: int | Integer[ArrayLike, ""], count: int
+) -> SceneKeys:
     """Keys of scenes ``start .. start+count-1`` of the stream of ``n_surfaces``-surface scenes of
     a sweep with ``key`` (the stream is ``fold_in(key, n_surfaces)``, so every scene size has its
     own scenes and one size's scenes do not depend on which other sizes a sweep runs).
 
     Arguments:
         key: the sweep's key.
-        n_surfaces: surfaces per scene.
-        start, count: the scenes' positions in the stream.
+        n_surfaces: surfaces per scene (may be traced).
+        start, count: the scenes' positions in the stream (``start`` may be traced).
 
     Returns:
         ``(count,)`` per-scene keys (for :func:`sample_batch` or :func:`draw_scenes`).

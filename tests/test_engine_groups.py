@@ -1,0 +1,101 @@
+"""Programs shared by several models and several surface counts (``ccjax.runs``): a group's
+errors are each model's own, a stream reads its own padded width of a wider draw, and the counts
+that can share one sampler do so only where its draws are bitwise their own."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import numpy as np
+import pytest
+
+from ccjax import scenes
+from ccjax.runs import engine, store, synthetic
+from ccjax.runs.synthetic import SyntheticSource, run_synthetic
+from ccjax.scenes import SceneOptions
+from test_engine import Budgeted
+
+LABELS = ("NOTHING", "GW", "shades-of-grey-p6", "C-by-C-MMSE")
+
+
+@pytest.fixture(scope="module")
+def models(default_world):
+    return [store.fit(label, default_world) for label in LABELS]
+
+
+def test_a_groups_rows_are_each_models_scene_errors_on_its_own_width(default_world, models):
+    """``group_errors`` on a 16-slot draw read at 8 slots: row k is ``scene_errors(models[k])`` on the
+    8-slot draw of the same keys (statuses bitwise; errors to float32 rounding: a k-model program
+    fuses, so rounds, otherwise)."""
+    tables = scenes.SceneTables.from_world(default_world)
+    keys = scenes.sweep_keys(jax.random.key(3), 6, 0, 40)
+    wide = scenes.sample_batch_slots(keys, tables, 6, 16)
+    narrow = scenes.sample_batch_slots(keys, tables, 6, 8)
+    got = jax.device_get(eqx.filter_jit(engine.group_errors)(tuple(models), wide, tables.canonical_white, 8))
+    for row, model in enumerate(models):
+        expected = jax.device_get(eqx.filter_jit(engine.scene_errors)(model, narrow, tables.canonical_white))
+        assert set(got) == set(expected)
+        for name, values in expected.items():
+            assert got[name].shape == (len(models), 40)
+            if name in ("ok", "status"):
+                np.testing.assert_array_equal(got[name][row], values, err_msg=name)
+            else:
+                atol = 1e-5 if name == "angular" else 1e-6
+                np.testing.assert_allclose(got[name][row], values, rtol=1e-6, atol=atol, err_msg=name)
+
+
+def test_models_without_size_branches_share_a_program_and_budgeted_ones_have_their_own(models):
+    budgeted = Budgeted(models[1])
+    everyone = [models[0], budgeted, models[1], models[2], budgeted, models[3]]
+    assert engine.program_groups(everyone, range(6)) == [(0, 2, 3, 5), (1,), (4,)]
+    # A stream runs the models it has not read from the cache: the groups are of those only.
+    assert engine.program_groups(everyone, (1, 3)) == [(1,), (3,)]
+    many = [models[0]] * (engine.GROUP_SIZE + 3)
+    groups = engine.program_groups(many, range(len(many)))
+    assert [len(group) for group in groups] == [engine.GROUP_SIZE, 3]
+    assert sorted(p for group in groups for p in group) == list(range(len(many)))
+
+
+@pytest.mark.parametrize(
+    ("options", "shared"),
+    [
+        (SceneOptions(), True),
+        (SceneOptions(scenes.Specular()), True),
+        # Two options: another width may round the scenes' sums otherwise, so each count keeps its own.
+        (SceneOptions(scenes.Specular(), scenes.ShotNoise()), False),
+    ],
+    ids=["plain", "one option", "two options"],
+)
+def test_small_counts_share_one_sampler_only_where_its_draws_are_bitwise_theirs(options, shared):
+    source = SyntheticSource(jax.random.key(0), (4, 8, 16, 64, 100), 10, options)
+    sizes = {4: 16, 8: 16, 16: 16, 64: 64, 100: 100}
+    chunks = dict.fromkeys(sizes, 10)
+    widths = synthetic.sampler_widths(source, sizes, chunks)
+    if shared:
+        # Up to SHARED_SAMPLER_SLOTS slots: one width, the widest; above it each count keeps its own.
+        assert widths == {4: 64, 8: 64, 16: 64, 64: 64, 100: 100}
+    else:
+        assert widths == sizes
+    # Counts cut into chunks of other sizes never share (each sampler program has one batch shape).
+    assert synthetic.sampler_widths(source, sizes, {**chunks, 4: 7})[4] == 16
+
+
+def test_a_wide_sampler_gives_each_count_its_own_scenes(default_world, models):
+    """Counts 4 and 8 run with 16 and 64 (one 64-slot sampler) give, cell by cell, what each count
+    run alone gives (its own sampler at its own width): the same scenes, so statuses bitwise and
+    errors to float32 rounding."""
+    budgeted = [Budgeted(model) for model in models[:2]]
+    together = run_synthetic(
+        default_world, budgeted, [SyntheticSource(jax.random.key(5), (4, 8, 16, 64), 30)], progress=False
+    )
+    for n in (4, 8, 64):
+        alone = run_synthetic(default_world, budgeted, [SyntheticSource(jax.random.key(5), (n,), 30)], progress=False)
+        for position in range(len(budgeted)):
+            got, expected = together.errors[0][n][position], alone.errors[0][n][position]
+            assert got.keys() == expected.keys()
+            for name, values in expected.items():
+                if name in ("ok", "status"):
+                    np.testing.assert_array_equal(got[name], values, err_msg=name)
+                else:
+                    atol = 1e-5 if name == "angular" else 1e-6
+                    np.testing.assert_allclose(got[name], values, rtol=1e-6, atol=atol, err_msg=f"{n} {name}")
