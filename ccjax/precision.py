@@ -33,6 +33,7 @@ from collections.abc import Callable, Iterator
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 from jax.core import ShapedArray
 from jax.extend import core as jax_core
@@ -85,6 +86,21 @@ def einsum(subscripts: str, *operands: ArrayLike) -> Array:
         The contraction, float32-exact on every backend.
     """
     return jnp.einsum(subscripts, *operands, precision=HIGHEST)
+
+
+def device_array(values: ArrayLike) -> Array:
+    """A host array on the default device in the dtype ``jnp.asarray`` would give it (float64
+    becomes float32 unless ``jax_enable_x64``), cast by NumPy: ``jnp.asarray`` of a NumPy array
+    compiles a small conversion program per shape, which a command's start-up pays for each.
+
+    Arguments:
+        values: a NumPy array or anything ``np.asarray`` takes.
+
+    Returns:
+        The device array (the same values; a cast rounds to nearest as XLA's does).
+    """
+    host = np.asarray(values)
+    return jax.device_put(host.astype(jax.dtypes.canonicalize_dtype(host.dtype), copy=False))
 
 
 def fast_matmul(a: ArrayLike, b: ArrayLike) -> Array:

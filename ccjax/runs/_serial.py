@@ -257,8 +257,9 @@ def world_from_parts(names: Any, arrays: Mapping[str, np.ndarray]) -> World:
         raise Rejected(f"world names {names!r}")
     if sorted(arrays) != sorted(_WORLD_ARRAYS) or any(arrays[n].dtype.kind != "f" for n in _WORLD_ARRAYS):
         raise Rejected(f"world arrays {sorted(arrays)}")
-    camera = Camera(sensors=jnp.asarray(arrays["sensors"]), name=names["camera_name"])
-    spectra = {name: jnp.asarray(arrays[name]) for name in _WORLD_ARRAYS[:-1]}
+    # device_put, not jnp.asarray: the latter compiles a small copy program per shape.
+    camera = Camera(sensors=jax.device_put(arrays["sensors"]), name=names["camera_name"])
+    spectra = {name: jax.device_put(arrays[name]) for name in _WORLD_ARRAYS[:-1]}
     try:
         return World(**spectra, camera=camera, name=names["name"])
     except ValueError as error:

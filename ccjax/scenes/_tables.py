@@ -72,11 +72,11 @@ class SceneTables(eqx.Module):
             :class:`SceneTables`.
         """
         sensors = world.camera.sensors
-        lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
-        surface_rgb = einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
+        surface_rgb, whites, canonical_rgb, canonical_white = _world_tables(world)
         metal_rgb = canonical_metal_rgb = fluorescent_rgb = canonical_fluorescent_rgb = None
         if metals is not None and metals is not False:
             spectra = _metal_table(metals, sensors.dtype)
+            lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
             metal_rgb = einsum("ml,jlc->jmc", spectra, lit_sensors)
             canonical_metal_rgb = matmul(spectra * world.canonical, sensors)
         if fluorescent is not None:
@@ -95,14 +95,23 @@ class SceneTables(eqx.Module):
             fluorescent_rgb, canonical_fluorescent_rgb = responses[:-1], responses[-1]
         return cls(
             surface_rgb=surface_rgb,
-            whites=world.test_whites,
-            canonical_rgb=world.canonical_rgb,
-            canonical_white=world.canonical_white,
+            whites=whites,
+            canonical_rgb=canonical_rgb,
+            canonical_white=canonical_white,
             metal_rgb=metal_rgb,
             canonical_metal_rgb=canonical_metal_rgb,
             fluorescent_rgb=fluorescent_rgb,
             canonical_fluorescent_rgb=canonical_fluorescent_rgb,
         )
+
+
+@eqx.filter_jit
+def _world_tables(world: World) -> tuple[Array, Array, Array, Array]:
+    """The tables every scene needs, as one program (eagerly, each product is a program of its own
+    to compile): every reflectance and a white under every test illuminant and the canonical one."""
+    lit_sensors = world.test_illuminants[:, :, None] * world.camera.sensors[None]  # (J, 101, 3)
+    surface_rgb = einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
+    return surface_rgb, world.test_whites, world.canonical_rgb, world.canonical_white
 
 
 def _metal_table(metals, dtype) -> Float[Array, "M 101"]:

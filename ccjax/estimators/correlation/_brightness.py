@@ -29,7 +29,7 @@ from ccjax.estimators.correlation._fitting import (
 )
 from ccjax.estimators.correlation._matrices import BRIGHTNESS_SIGMA, brightness_matrix
 from ccjax.estimators.simple import average_illuminant
-from ccjax.precision import matmul
+from ccjax.precision import device_array, matmul
 from ccjax.world import World
 
 RG_CELLS = compact_rg_cells().astype(np.int32)
@@ -280,7 +280,7 @@ def fit_brightness(
         fluorescent=fluorescent,
     )
     return ColourByCorrelation3D(
-        log_probability=jnp.asarray(matrix),
+        log_probability=device_array(matrix),
         illuminant_rg=illuminant_rg_of(world),
         fallback=average_illuminant(world),
         l_bins=l_bins,

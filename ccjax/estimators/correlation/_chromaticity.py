@@ -24,7 +24,7 @@ from ccjax.estimators.correlation._fitting import (
 )
 from ccjax.estimators.correlation._matrices import chromaticity_matrix, hull_matrix
 from ccjax.estimators.simple import average_illuminant
-from ccjax.precision import matmul
+from ccjax.precision import device_array, matmul
 from ccjax.world import World
 
 
@@ -164,7 +164,7 @@ def fit_chromaticity(
     temperature = check_positive("temperature", temperature)
     matrix = chromaticity_matrix(world, sigma=sigma, floor=floor, specular=specular, fluorescent=fluorescent)
     model = ColourByCorrelation(
-        log_probability=jnp.asarray(matrix),
+        log_probability=device_array(matrix),
         illuminant_rg=illuminant_rg_of(world),
         fallback=average_illuminant(world),
         selector=selector,
