@@ -9,17 +9,27 @@ value, not a new optimiser, and runs that differ only in their rates share one c
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import optax
 from jaxtyping import ArrayLike
 
-OPTIMISER = optax.inject_hyperparams(optax.adam)(learning_rate=0.0)
-"""Adam with its learning rate in the state (Kingma & Ba 2015; optax's defaults otherwise)."""
+if TYPE_CHECKING:
+    import optax
+
+
+@functools.cache
+def optimiser() -> optax.GradientTransformationExtraArgs:
+    """Adam with its learning rate in the state (Kingma & Ba 2015; optax's defaults otherwise).
+    Built on first use: optax is imported by the commands that train, not by every command that
+    loads the estimators."""
+    import optax
+
+    return optax.inject_hyperparams(optax.adam)(learning_rate=0.0)
 
 
 def adam_init(params: Any) -> optax.OptState:
@@ -31,7 +41,7 @@ def adam_init(params: Any) -> optax.OptState:
     Returns:
         The optimiser state.
     """
-    return OPTIMISER.init(eqx.filter(params, eqx.is_array))
+    return optimiser().init(eqx.filter(params, eqx.is_array))
 
 
 def adam_step(
@@ -60,5 +70,5 @@ def adam_step(
     # optax's bias correction raises a float32 decay to the int32 step count; strict dtype
     # promotion (the test suite's) would refuse it, so optax runs under JAX's standard rules.
     with jax.numpy_dtype_promotion("standard"):
-        updates, state = OPTIMISER.update(grads, state)
+        updates, state = optimiser().update(grads, state)
     return eqx.apply_updates(params, updates), state, value

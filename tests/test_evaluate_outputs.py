@@ -51,13 +51,13 @@ def test_json_and_csv_cannot_share_standard_output(folder, capsys):
 
 
 def test_the_error_plot_has_a_legend_in_both_panels_and_names_the_images(tmp_path, monkeypatch):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ccjax.experiments import plots
 
     figures = []
-    monkeypatch.setattr(plt, "close", lambda fig=None: figures.append(fig))
+    write = plots.write_figure
+    monkeypatch.setattr(
+        plots, "write_figure", lambda fig, *args, **kwargs: (figures.append(fig), write(fig, *args, **kwargs))
+    )
     truth = np.array([[1.0, 1.0, 1.0], [1.0, 0.8, 0.6], [0.5, 1.0, 0.9]])
     results = ImageResults(
         paths=["a.png", "b.png", "c.png"],

@@ -7,7 +7,7 @@ import numpy as np
 
 from ccjax.calibration.robustness import Robustness
 from ccjax.calibration.table import JOINT, JOINT_RANGE, PSEUDO_INVERSE, PSEUDO_INVERSE_POSITIVE, CalibrationTable
-from ccjax.io.files import write_figure
+from ccjax.io.files import new_figure, write_figure
 from ccjax.spectra import WAVELENGTHS
 
 
@@ -24,13 +24,9 @@ def plot_sensors(table: CalibrationTable, path, *, truth: np.ndarray | None = No
     Returns:
         None.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     panels = (JOINT, PSEUDO_INVERSE_POSITIVE, PSEUDO_INVERSE)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
+    fig = new_figure(figsize=(16, 4.6))
+    axes = fig.subplots(1, 3)
     colours = ("tab:red", "tab:green", "tab:blue")
     for ax, label in zip(axes, panels):
         sensors = np.asarray(table.row(label).fit.sensors, dtype=np.float64)
@@ -49,10 +45,7 @@ def plot_sensors(table: CalibrationTable, path, *, truth: np.ndarray | None = No
     axes[0].legend(fontsize=8, ncol=2)
     fig.suptitle(title or "fitted sensor curves")
     fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=110)
-    finally:
-        plt.close(fig)
+    write_figure(fig, path, dpi=110)
 
 
 def plot_robustness(result: Robustness, path, *, title: str = "") -> None:
@@ -66,12 +59,8 @@ def plot_robustness(result: Robustness, path, *, title: str = "") -> None:
     Returns:
         None.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    fig = new_figure(figsize=(7.5, 5.5))
+    ax = fig.subplots()
     for label, m in result.mean().items():
         if label in (JOINT, JOINT_RANGE):  # the proposed methods stand out
             ax.plot(result.sizes, 100 * m, marker="o", label=label, lw=2.5, color="k" if label == JOINT else "0.35")
@@ -87,7 +76,4 @@ def plot_robustness(result: Robustness, path, *, title: str = "") -> None:
     ax.legend(fontsize=8)
     ax.set_title(title or f"robustness: {result.n_subsets} random subsets per size")
     fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=110)
-    finally:
-        plt.close(fig)
+    write_figure(fig, path, dpi=110)

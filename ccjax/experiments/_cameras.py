@@ -63,17 +63,13 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     Returns:
         None.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from ccjax._colour import rg_numpy
-    from ccjax.io.files import write_figure
+    from ccjax.io.files import new_figure, write_figure
 
     bodies, days = (rg_numpy(whites) for whites in locus_whites(world.camera))
     points = rg_numpy(np.asarray(truth, np.float64))
-    fig, ax = plt.subplots(figsize=(6, 5))
+    fig = new_figure(figsize=(6, 5))
+    ax = fig.subplots()
     ax.plot(bodies[:, 0], bodies[:, 1], lw=1.5, label=f"{check.camera}: blackbodies")
     ax.plot(days[:, 0], days[:, 1], lw=1.5, ls="--", label=f"{check.camera}: CIE daylights")
     ax.scatter(points[:, 0], points[:, 1], s=6, alpha=0.6, c="red", label="ground truth")
@@ -89,7 +85,6 @@ def plot_curve_check(check: CurveCheck, world: World, truth, path) -> None:
     )
     fig.tight_layout()
     write_figure(fig, path, dpi=110)  # atomic for paths; file objects pass through (PNG)
-    plt.close(fig)
 
 
 def sfu321_check(world: World, data_dir=None) -> Report:

@@ -229,17 +229,13 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
         path: PNG file to write.
         title: figure title (default: the camera's name).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ccjax.io.files import write_figure
+    from ccjax.io.files import new_figure, write_figure
     from ccjax.spectra import WAVELENGTHS
 
     original = np.asarray(world.camera.sensors, dtype=np.float64)
     sharp = original @ np.asarray(transform, dtype=np.float64)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    fig = new_figure(figsize=(11, 4))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, curves, name in ((axes[0], original, "original"), (axes[1], sharp, "sharpened")):
         for k, colour in enumerate("rgb"):
             ax.plot(WAVELENGTHS, curves[:, k] / np.max(np.abs(curves[:, k])), color=colour)
@@ -251,7 +247,6 @@ def plot_sensors(world: World, transform, path, title: str | None = None) -> Non
     fig.suptitle(title or world.camera.name)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)  # atomic for paths; file objects pass through
-    plt.close(fig)
 
 
 def rank_cameras(data_dir=None, names: Sequence[str] | None = None, progress: bool = False) -> list[dict]:

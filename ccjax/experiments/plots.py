@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ccjax.experiments.results import SweepResult
-from ccjax.io.files import write_figure
+from ccjax.io.files import new_figure, write_figure
 from ccjax.world import World
 
 if typing.TYPE_CHECKING:  # importing ccjax.experiments stays cheap: evaluation loads on use
@@ -31,23 +31,11 @@ STATISTIC_LABELS = {
 """Axis labels of the per-scene statistics."""
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _finish(plt, fig, path, title: str) -> None:
-    """Title, lay out and write a figure (atomically, :func:`ccjax.io.files.write_figure`), then free it."""
+def _finish(fig, path, title: str) -> None:
+    """Title, lay out and write a figure (atomically, :func:`ccjax.io.files.write_figure`)."""
     fig.suptitle(title)
     fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    write_figure(fig, path, dpi=120, bbox_inches="tight")
 
 
 MARKERS = ("o", "s", "^", "D", "v", "P", "X")
@@ -82,8 +70,8 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
         summary: the summary of the per-scene errors (``"rms"`` as in the thesis).
         title: the figure title (default: the scenes per point).
     """
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(statistics), figsize=(5.5 * len(statistics), 4.2), squeeze=False)
+    fig = new_figure(figsize=(5.5 * len(statistics), 4.2))
+    axes = fig.subplots(1, len(statistics), squeeze=False)
     styles = method_styles(len(result.methods))
     for ax, statistic in zip(axes[0], statistics, strict=False):
         for method, style in zip(result.methods, styles, strict=True):
@@ -102,7 +90,7 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
         ax.grid(alpha=0.3)
     handles, names = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, names, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    _finish(plt, fig, path, title or f"{result.n_scenes} scenes per point")
+    _finish(fig, path, title or f"{result.n_scenes} scenes per point")
 
 
 def plot_world(world: World, path) -> None:
@@ -114,8 +102,8 @@ def plot_world(world: World, path) -> None:
     """
     from ccjax._colour import rg_numpy
 
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), sharex=True, sharey=True)
+    fig = new_figure(figsize=(15, 4.8))
+    axes = fig.subplots(1, 3, sharex=True, sharey=True)
     panels = [
         ("training illuminants", np.asarray(world.train_whites), 12),
         ("test illuminants", np.asarray(world.test_whites), 6),
@@ -133,10 +121,7 @@ def plot_world(world: World, path) -> None:
     axes[0].legend()
     fig.suptitle(f"{world.name}: (r,g) chromaticities")
     fig.tight_layout()
-    try:
-        write_figure(fig, path, dpi=110)
-    finally:
-        plt.close(fig)
+    write_figure(fig, path, dpi=110)
 
 
 FILE_NAME_TICKS = 40
@@ -154,11 +139,11 @@ def plot_image_errors(results: ImageResults, path, title: str | None = None) -> 
         path: the image file to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
         title: the figure title (default: the number of images).
     """
-    plt = _pyplot()
     methods = list(results.estimates)
     errors = {method: results.angular(method) for method in methods}
     order = np.argsort(errors[methods[0]], kind="stable") if methods else np.array([], int)
-    fig, (cumulative, each) = plt.subplots(1, 2, figsize=(12, 4.2))
+    fig = new_figure(figsize=(12, 4.2))
+    cumulative, each = fig.subplots(1, 2)
     share = np.arange(len(results.paths) + 1) / max(len(results.paths), 1)  # from 0 at no error
     for index, method in enumerate(methods):
         colour = f"C{index % 10}"
@@ -182,4 +167,4 @@ def plot_image_errors(results: ImageResults, path, title: str | None = None) -> 
     cumulative.legend(fontsize=8, loc="lower right")
     if methods:
         each.legend(fontsize=8, loc="upper left")
-    _finish(plt, fig, path, title or f"angular error over {len(results.paths)} images (hollow: fell back or relaxed)")
+    _finish(fig, path, title or f"angular error over {len(results.paths)} images (hollow: fell back or relaxed)")
