@@ -275,15 +275,22 @@ def check_plot(path: str | os.PathLike | None, option: str = "--plot") -> None:
         raise ValueError(f"{option}: {path} must end in .png")
 
 
-def write_plot(path: str | os.PathLike, draw, *, overwrite: bool) -> None:
+def write_plot(path: str | os.PathLike, draw, *, overwrite: bool, drawn_from: tuple | None = None) -> None:
     """Write a plot atomically: ``draw(buffer)`` renders the PNG into memory (matplotlib's
     ``savefig`` takes a file object), then :func:`ccjax.io.files.write_file` puts it in place
     through a temporary file, so an interrupted run never leaves a partial plot.
+
+    With ``drawn_from``, the PNG is kept in the disk cache (``<cache>/plots``, verified by its
+    digest when read) under a key of those parts, ccjax's code and matplotlib's version, and a
+    later run drawing the same figure writes the stored bytes instead of importing matplotlib
+    and drawing it again (about a second).
 
     Arguments:
         path: the ``.png`` file (checked first with :func:`check_plot` and :func:`check_outputs`).
         draw: a function of one binary file object that saves the figure there as PNG.
         overwrite: ``--overwrite``.
+        drawn_from: everything the figure depends on (the plotted values, labels and title), or
+            ``None`` to draw it every time.
 
     Returns:
         None.
@@ -292,9 +299,26 @@ def write_plot(path: str | os.PathLike, draw, *, overwrite: bool) -> None:
 
     from ccjax.io.files import write_file
 
-    buffer = io.BytesIO()
-    draw(buffer)
-    write_file(path, buffer.getvalue(), overwrite=overwrite)
+    png = None
+    if drawn_from is not None:
+        from importlib.metadata import version
+
+        import numpy as np
+
+        from ccjax._cache import code_fingerprint, content_key
+        from ccjax._entries import Expect, read_arrays, write_arrays
+
+        key = content_key("plot", code_fingerprint(), version("matplotlib"), *drawn_from)
+        facts = {"plot": str(drawn_from[0])}
+        stored = read_arrays("plots", key, {"png": Expect((None,), "u", 0.0, 255.0)}, facts)
+        png = None if stored is None else stored["png"].tobytes()
+    if png is None:
+        buffer = io.BytesIO()
+        draw(buffer)
+        png = buffer.getvalue()
+        if drawn_from is not None:
+            write_arrays("plots", key, {"png": np.frombuffer(png, np.uint8)}, facts)  # pyright: ignore[reportPossiblyUnboundVariable]
+    write_file(path, png, overwrite=overwrite)
     print(f"wrote {path}", file=sys.stderr)
 
 

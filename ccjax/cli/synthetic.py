@@ -104,6 +104,10 @@ def add_compare(sub) -> None:
     p.set_defaults(func=run_compare)
 
 
+PLOTTED = ("rg", "angular")
+"""The statistics of ``compare --plot``'s panels (RMS over scenes)."""
+
+
 def run_compare(args) -> int:
     import jax
 
@@ -153,7 +157,15 @@ def run_compare(args) -> int:
     print(result.status_table(), file=out)
     if args.plot:
         title = f"{world.name}: {args.scenes} scenes per point"
-        write_plot(args.plot, lambda file: experiments.plot(result, file, title=title), overwrite=args.overwrite)
+        # The figure is a function of the plotted summaries, labels and title: a repeated run
+        # writes the stored PNG.
+        plotted = [[[result.value(m, n, s) for n in result.surfaces] for m in result.methods] for s in PLOTTED]
+        write_plot(
+            args.plot,
+            lambda file: experiments.plot(result, file, statistics=PLOTTED, title=title),
+            overwrite=args.overwrite,
+            drawn_from=("compare", title, result.methods, result.surfaces, plotted),
+        )
     if args.json or args.csv:
         write_outputs(args, result.report(SUMMARIES))
     fit_compile, sweep_compile = log.seconds() - log.seconds(fitted), log.seconds(fitted)
