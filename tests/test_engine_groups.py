@@ -8,12 +8,12 @@ import equinox as eqx
 import jax
 import numpy as np
 import pytest
+from test_engine import Budgeted
 
 from ccjax import scenes
 from ccjax.runs import engine, store, synthetic
 from ccjax.runs.synthetic import SyntheticSource, run_synthetic
 from ccjax.scenes import SceneOptions
-from test_engine import Budgeted
 
 LABELS = ("NOTHING", "GW", "shades-of-grey-p6", "C-by-C-MMSE")
 
