@@ -47,9 +47,10 @@ def test_a_groups_rows_are_each_models_scene_errors_on_its_own_width(default_wor
 def test_models_without_size_branches_share_a_program_and_budgeted_ones_have_their_own(models):
     budgeted = Budgeted(models[1])
     everyone = [models[0], budgeted, models[1], models[2], budgeted, models[3]]
-    assert engine.program_groups(everyone, range(6)) == [(0, 2, 3, 5), (1,), (4,)]
+    # The size-branched programs first (the largest), then the shared group.
+    assert engine.program_groups(everyone, range(6)) == [(1,), (4,), (0, 2, 3, 5)]
     # A stream runs the models it has not read from the cache: the groups are of those only.
-    assert engine.program_groups(everyone, (1, 3)) == [(1,), (3,)]
+    assert engine.program_groups(everyone, (3, 1)) == [(1,), (3,)]
     many = [models[0]] * (engine.GROUP_SIZE + 3)
     groups = engine.program_groups(many, range(len(many)))
     assert [len(group) for group in groups] == [engine.GROUP_SIZE, 3]

@@ -114,9 +114,7 @@ def applicable(model: AbstractEstimator, errors: dict) -> dict:
     return {name: value for name, value in errors.items() if model.estimates_brightness or name not in RGB_VALUED}
 
 
-_group_program = eqx.filter_jit(
-    group_errors,
-)
+_group_program = eqx.filter_jit(group_errors)
 
 
 class Placement:
@@ -250,12 +248,13 @@ def program_groups(models: Sequence[AbstractEstimator], positions: Sequence[int]
         positions: indices into ``models``.
 
     Returns:
-        Groups of positions, in order of first position; every position in exactly one.
+        Groups of positions, every position in exactly one: the models with size branches first
+        (the largest programs, so that a compile worker starts on them while the other compiles
+        the rest), then the groups of the others, in order.
     """
     plain = [position for position in positions if not models[position].padding.budgets]
-    groups = [tuple(plain[start : start + GROUP_SIZE]) for start in range(0, len(plain), GROUP_SIZE)]
-    groups += [(position,) for position in positions if models[position].padding.budgets]
-    return sorted(groups)
+    groups = [(position,) for position in positions if models[position].padding.budgets]
+    return groups + [tuple(plain[start : start + GROUP_SIZE]) for start in range(0, len(plain), GROUP_SIZE)]
 
 
 def run_streams(
@@ -317,16 +316,8 @@ def run_streams(
     try:
         makers: dict[Hashable, concurrent.futures.Future] = {}
         programs: dict[tuple, concurrent.futures.Future] = {}
-        # In the order the streams need them, and within a stream the models with size branches
-        # (the largest programs) first, so that the other worker compiles the rest meanwhile.
-        pending = [
-            (group, stream)
-            for stream in streams
-            for group in sorted(
-                program_groups(models, stream.positions),
-                key=lambda group: not any(models[position].padding.budgets for position in group),
-            )
-        ]
+        # In the order the streams need them (within a stream, the largest programs first).
+        pending = [(group, stream) for stream in streams for group in program_groups(models, stream.positions)]
         for stream in streams:
             if stream.positions and stream.maker not in makers:
                 makers[stream.maker] = compiler.submit(compile_maker, stream)
