@@ -50,10 +50,23 @@ def estimate(method, x, mask=None, *, world: World | None = None, saturation: fl
             not used, in ``x``'s own units (default 0.98, the command line's clip level for images
             on the unit scale, saturation = 1); None uses every pixel. Surface lists ignore it.
 
+    ``estimate`` fits and inspects its input on the host, so it is called outside ``jax.jit``; inside
+    a jitted function (a training loop), fit the model outside it and call the model::
+
+        model = ccjax.fit("GW", ccjax.World.default())   # outside jit, once
+        step = jax.jit(lambda rgb, mask: model(rgb, mask).illuminant)
+
+    (``ccjax.estimate_batch(model, rgb, mask)`` for a batch of surface lists.)
+
     Returns:
         An :class:`Estimate` (``illuminant`` RGB of white, ``ok``, ``status``), batched like an image
         batch ``x``.
+
+    Raises:
+        TypeError: ``x`` or ``mask`` is a traced value (a call inside ``jax.jit``, ``vmap`` or
+            ``grad``).
     """
+    _refuse_traced(x, mask)
     enable_compilation_cache()
     if isinstance(method, str):
         # The same object for repeated calls, so they also reuse its compiled code.
@@ -84,6 +97,18 @@ def estimate(method, x, mask=None, *, world: World | None = None, saturation: fl
         mask=mask.reshape(batch * height, width),
     ).reshape(batch, height, width)
     return _run(model, images, usable)
+
+
+def _refuse_traced(x, mask) -> None:
+    from jax.core import Tracer
+
+    for name, value in (("x", x), ("mask", mask)):
+        if isinstance(value, Tracer):
+            raise TypeError(
+                f"{name}: ccjax.estimate was called on a traced value (inside jax.jit, vmap or grad); it fits "
+                "the model and reads the pixels on the host. Fit the model outside the transformation and call it "
+                "inside: model = ccjax.fit(label, world); model(rgb, mask) (or ccjax.estimate_batch(model, rgb, mask))"
+            )
 
 
 def _check_saturation(saturation: float | None, x) -> None:

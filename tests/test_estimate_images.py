@@ -3,6 +3,8 @@ dropped) applied by default, for every family, against NumPy oracles."""
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -121,3 +123,14 @@ def test_surface_lists_are_unchanged():
     rgb = np.array([[0.99, 0.5, 0.2], [0.2, 0.4, 0.6]], np.float32)
     got = np.asarray(ccjax.estimate("GW", rgb).illuminant)
     assert degrees(got, rgb.mean(axis=0)) < 1e-4
+
+
+def test_estimate_inside_jit_says_to_fit_outside_and_the_advice_works():
+    rgb = jnp.asarray(np.random.default_rng(0).uniform(0.1, 1.0, (12, 3)), jnp.float32)
+    with pytest.raises(TypeError, match=r"x: ccjax.estimate was called on a traced value.*ccjax.fit"):
+        jax.jit(lambda x: ccjax.estimate("GW", x).illuminant)(rgb)
+    model = ccjax.fit("GW", ccjax.World.default())
+    inside = jax.jit(lambda x: model(x, jnp.ones(x.shape[0], bool)).illuminant)(rgb)
+    # Grey world's estimate is the mean of the surfaces, up to its fitted scale (a closed form).
+    mean = np.asarray(rgb, np.float64).mean(axis=0)
+    np.testing.assert_allclose(np.asarray(inside) / np.asarray(inside)[1], mean / mean[1], rtol=1e-5)
