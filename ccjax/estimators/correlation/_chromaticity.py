@@ -205,6 +205,7 @@ def mlm_width_search(
 
 
 MLM_WIDTHS = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0)
+"""The candidate widths (in bins) :func:`tune_mlm_width` chooses the MLM blur from."""
 
 
 def tune_mlm_width(

@@ -21,6 +21,7 @@ from ccjax.estimators.ffcc._vonmises import fit_von_mises
 __all__ = ["FFCC", "Posterior", "convolve", "uv_to_rgb"]
 
 BINS = 64
+"""Histogram bins per log-chroma axis (the reference code's ``NUM_BINS``)."""
 BIN_SIZE = 1.0 / 32.0
 """The reference code's histogram for camera-specific models (``NUM_BINS``, ``BIN_SIZE``): 64 bins of
 1/32 cover a log-chroma range of 2 (a factor e^2 between channels) on each axis."""

@@ -18,6 +18,7 @@ from ccjax.precision import linear, matmul
 BINS = 50
 """(r,g) bins per axis; cells are ``1 / BINS = 0.02`` wide (§4.5.5)."""
 N_INPUTS = BINS * BINS
+"""The net's inputs: one per (r,g) bin, ``BINS * BINS = 2500`` (§4.5.5)."""
 SIMPLEX_MARGIN = 1e-4
 """Keeps the predicted illuminant strictly inside the chromaticity triangle, so every channel of the
 RGB estimate is positive and the diagonal map to canonical exists."""
