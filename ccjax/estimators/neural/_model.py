@@ -97,7 +97,15 @@ class Mlp(eqx.Module):
         return self._hidden_to_output(linear(self.layers[0], x))
 
     def from_bins(self, bins: jax.Array, weight: Float[Array, " P"]) -> Float[Array, " n_out"]:
-        """The net on a sparse 0/1 input given by :func:`occupied_bins` (same value as ``__call__``)."""
+        """The net on a sparse 0/1 input given by :func:`occupied_bins` (same value as ``__call__``).
+
+        Arguments:
+            bins: the occupied bins' indices (:func:`occupied_bins`).
+            weight: ``(P,)`` each index's weight (0 for padding).
+
+        Returns:
+            ``(n_out,)`` the net's output.
+        """
         first = self.layers[0]
         hidden = matmul(first.weight[:, bins], weight.astype(first.weight.dtype))
         return self._hidden_to_output(hidden if first.bias is None else hidden + first.bias)
