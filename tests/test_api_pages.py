@@ -93,19 +93,27 @@ def entries() -> list[tuple[str, str, dict]]:
 
 
 @functools.cache
-def package() -> griffe.Module:
-    """ccjax as griffe reads it, docstrings parsed as the site parses them."""
+def roles():
+    """docs/roles.py, the site's griffe extensions."""
     spec = importlib.util.spec_from_file_location("docs_roles", ROOT / "docs" / "roles.py")
     assert spec is not None and spec.loader is not None
-    roles = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(roles)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@functools.cache
+def package() -> griffe.Module:
+    """ccjax as griffe reads it for the site: mkdocs.yml's docstring options and its extensions
+    from docs/roles.py, in its order."""
     options = handler_options()
+    extensions = [getattr(roles(), name.rpartition(":")[2])() for name in options.get("extensions", [])]
     return griffe.load(
         "ccjax",
         search_paths=[str(ROOT)],
         docstring_parser=options.get("docstring_style", "google"),
         docstring_options=options.get("docstring_options", {}),
-        extensions=griffe.load_extensions(roles.SplitGroupedParameters()),
+        extensions=griffe.load_extensions(*extensions),
         resolve_aliases=True,
         resolve_external=False,
     )
@@ -260,6 +268,14 @@ def report() -> dict:
             undocumented.append(f"{path}: {', '.join(absent)}")
         if _returns_something(function) and not _documents_return(function):
             no_returns.append(path)
+    rows = []  # a parameter row naming no parameter, a Returns section of several rows or a named one
+    for path, function in sorted(functions.items()):
+        signature = {p.lstrip("*") for p in _function_parameters(function)}
+        for section in function.docstring.parsed if function.docstring else []:
+            if section.kind in PARAMETER_KINDS:
+                rows += [f"{path}: row {p.name!r}" for p in section.value if p.name.lstrip("*") not in signature]
+            if section.kind in RETURN_KINDS and (len(section.value) != 1 or section.value[0].name):
+                rows.append(f"{path}: {len(section.value)} {section.kind.value} rows, named {section.value[0].name!r}")
     pages = set(nav_pages())
     off_nav = sorted({page for page, _, _ in entries() if page not in pages})
     return {
@@ -270,6 +286,7 @@ def report() -> dict:
         "undocumented": undocumented,
         "no_returns": no_returns,
         "off_nav": off_nav,
+        "rows": rows,
     }
 
 
@@ -306,10 +323,29 @@ def test_every_function_shown_documents_its_parameters_and_returns():
     )
 
 
+def test_each_row_of_the_pages_is_one_parameter_or_the_one_return_value():
+    """The rows the site shows: a parameter row names a parameter of the signature (so its type
+    and default are the parameter's), a Returns section is one unnamed row."""
+    rows = report()["rows"]
+    assert not rows, f"{len(rows)} bogus rows:\n" + "\n".join(rows)
+
+
+def test_grouped_parameters_become_one_row_each():
+    text = (
+        "Do.\n\nArguments:\n    x: one.\n    height, width: the size\n        in pixels.\n\nReturns:\n    a, b: kept.\n"
+    )
+    split = roles().split_grouped(text)
+    assert "    height: the size\n        in pixels.\n    width: the size\n        in pixels.\n" in split
+    assert "    a, b: kept." in split  # only parameter sections
+    sections = griffe.Docstring(split, parser="google").parsed
+    names = [p.name for s in sections if s.kind in PARAMETER_KINDS for p in s.value]
+    assert names == ["x", "height", "width"]
+
+
 if __name__ == "__main__":
     sys.path.insert(0, str(ROOT))
     result = report()
     print(summary(result))
-    for key in ("missing", "private", "undocumented", "no_returns", "off_nav"):
+    for key in ("missing", "private", "undocumented", "no_returns", "off_nav", "rows"):
         if "-v" in sys.argv:
             print(f"\n{key} ({len(result[key])}):\n  " + "\n  ".join(result[key]))
