@@ -128,7 +128,15 @@ def _modules(module: griffe.Module):
 
 def public_modules() -> list[griffe.Module]:
     """ccjax and each of its modules and packages that declares ``__all__``, none under a private name."""
-    return [module for module in _modules(package()) if module.exports is not None]
+    modules = list(_modules(package()))
+    # An ``__all__`` griffe cannot read statically would drop its names from the check silently.
+    unread = [
+        m.path
+        for m in modules
+        if m.exports is None and isinstance(m.filepath, pathlib.Path) and "\n__all__" in m.filepath.read_text()
+    ]
+    assert not unread, f"__all__ not readable statically in {unread}"
+    return [module for module in modules if module.exports is not None]
 
 
 def public_names() -> list[str]:
