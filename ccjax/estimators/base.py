@@ -307,16 +307,13 @@ def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Boo
 
 
 def input_kind_of(model) -> str:
-    """The input kind of an estimator.
+    """The input kind of an estimator (``ValueError`` when ``model`` is not one).
 
     Arguments:
         model: a fitted estimator.
 
     Returns:
         ``"surfaces"`` or ``"image"``.
-
-    Raises:
-        ValueError: ``model`` is not an estimator.
     """
     if not isinstance(model, AbstractEstimator):
         raise ValueError(f"method: expected a fitted estimator (AbstractEstimator), got {type(model).__name__}")
