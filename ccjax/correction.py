@@ -40,7 +40,15 @@ def correction_map(
 @jax.jit
 def diagonal_gains(illuminant: Float[Array, "3"], canonical_white: Float[Array, "3"]) -> Float[Array, "3"]:
     """The diagonal of :func:`correction_map` without sharpening (per-channel gains ``w_C / e``,
-    scaled so that a grey keeps its R+G+B)."""
+    scaled so that a grey keeps its R+G+B).
+
+    Arguments:
+        illuminant: ``(3,)`` the estimated illuminant ``e``.
+        canonical_white: ``(3,)`` the canonical light's white ``w_C``.
+
+    Returns:
+        ``(3,)`` the per-channel gains.
+    """
     gains = canonical_white / jnp.where(illuminant > 1e-12, illuminant, 1e-12)
     grey = illuminant / jnp.maximum(jnp.sum(illuminant), 1e-12)
     return gains / jnp.maximum(jnp.sum(gains * grey), 1e-12)
@@ -48,7 +56,15 @@ def diagonal_gains(illuminant: Float[Array, "3"], canonical_white: Float[Array, 
 
 @jax.jit
 def apply_map(rgb: Float[Array, "... 3"], matrix: Float[Array, "3 3"]) -> Float[Array, "... 3"]:
-    """Apply a 3x3 colour map to every pixel (``matrix @ pixel``)."""
+    """Apply a 3x3 colour map to every pixel (``matrix @ pixel``).
+
+    Arguments:
+        rgb: ``(..., 3)`` pixels.
+        matrix: ``(3, 3)`` the map.
+
+    Returns:
+        ``(..., 3)`` the mapped pixels.
+    """
     return einsum("...c,kc->...k", rgb, matrix)
 
 

@@ -114,7 +114,15 @@ def reproduction_errors(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayL
     """Per-item reproduction angular error in degrees (:func:`ccjax.metrics.reproduction_angular_error`)
     with safe gradients: the corrected white ``truth / estimate`` (0 in channels where the estimate
     is not positive, as the metric's diagonal map has it) is compared with ``(1, 1, 1)``; where the
-    corrected white is zero the error is 90 degrees with gradient 0."""
+    corrected white is zero the error is 90 degrees with gradient 0.
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        truth: ``(..., 3)`` true illuminant RGBs.
+
+    Returns:
+        ``(...)`` the errors in degrees.
+    """
     estimate, truth = _check_rgb("estimate", estimate), _check_rgb("truth", truth)
     usable = jnp.any((estimate > TINY) & (truth != 0), axis=-1)
     safe_estimate = jnp.where(usable[..., None], estimate, jnp.ones_like(estimate))

@@ -58,25 +58,57 @@ def angular_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "
 
 
 def rg_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
-    """Euclidean distance of (r, g) chromaticities (thesis measure 2)."""
+    """Euclidean distance of (r, g) chromaticities (thesis measure 2).
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        truth: ``(..., 3)`` true illuminant RGBs.
+
+    Returns:
+        ``(...)`` the distances.
+    """
     estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     return _safe_norm(rg(estimate) - rg(truth))
 
 
 def rgb_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
-    """Euclidean RGB distance (thesis measure 3; meaningful for 3-D estimators)."""
+    """Euclidean RGB distance (thesis measure 3; meaningful for 3-D estimators).
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        truth: ``(..., 3)`` true illuminant RGBs.
+
+    Returns:
+        ``(...)`` the distances, in the units of the RGBs.
+    """
     estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     return _safe_norm(estimate - truth)
 
 
 def brightness_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
-    """Signed ``(R+G+B)`` of the estimate minus that of the truth (thesis measure 4; reported as RMS)."""
+    """Signed ``(R+G+B)`` of the estimate minus that of the truth (thesis measure 4; reported as RMS).
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        truth: ``(..., 3)`` true illuminant RGBs.
+
+    Returns:
+        ``(...)`` the signed differences.
+    """
     estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     return jnp.sum(estimate, axis=-1) - jnp.sum(truth, axis=-1)
 
 
 def diagonal_map(estimate: Float[ArrayLike, "... 3"], canonical_white: Float[ArrayLike, "3"]) -> Float[Array, "... 3"]:
-    """The diagonal map ``w_C / estimate`` taking the scene light to the canonical one (thesis §2.5)."""
+    """The diagonal map ``w_C / estimate`` taking the scene light to the canonical one (thesis §2.5).
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        canonical_white: ``(3,)`` the canonical light's white ``w_C``.
+
+    Returns:
+        ``(..., 3)`` the map's diagonal.
+    """
     estimate, canonical_white = jnp.asarray(estimate), jnp.asarray(canonical_white)
     positive = estimate > _TINY
     return jnp.where(positive, canonical_white / jnp.where(positive, estimate, 1.0), 0.0)
@@ -102,6 +134,13 @@ def mapping_errors(
     with the same surfaces under the canonical light; per scene the root mean square over its valid
     surfaces of the (r,g) and of the RGB distances (Barnard 1999 §4.2).
 
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        rgb: ``(..., P, 3)`` the scenes' surfaces under the scene light.
+        mask: ``(..., P)`` the valid surfaces.
+        canonical_rgb: ``(..., P, 3)`` the same surfaces under the canonical light.
+        canonical_white: ``(3,)`` the canonical light's white ``w_C``.
+
     Returns:
         ``(rg_rms, rgb_rms)``, each with the batch shape; 0 for a scene with no valid surface.
     """
@@ -116,7 +155,15 @@ def reproduction_angular_error(
     estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]
 ) -> Float[Array, "..."]:
     """Reproduction angular error (Finlayson & Zakizadeh 2014): the angle between the white
-    corrected by the estimate, ``truth / estimate``, and the achromatic ``(1, 1, 1)``."""
+    corrected by the estimate, ``truth / estimate``, and the achromatic ``(1, 1, 1)``.
+
+    Arguments:
+        estimate: ``(..., 3)`` estimated illuminant RGBs.
+        truth: ``(..., 3)`` true illuminant RGBs.
+
+    Returns:
+        ``(...)`` the errors in degrees.
+    """
     corrected = jnp.asarray(truth) * diagonal_map(estimate, jnp.ones(3))
     return angular_error(corrected, jnp.ones_like(corrected))
 

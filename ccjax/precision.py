@@ -200,7 +200,8 @@ def linear(layer: eqx.nn.Linear, x: Float[Array, " n_in"]) -> Float[Array, " n_o
     the backend's default precision): ``weight @ x + bias``.
 
     Arguments:
-        layer: the layer; x: ``(in_features,)``.
+        layer: the layer.
+        x: ``(in_features,)`` the input.
 
     Returns:
         ``(out_features,)``.

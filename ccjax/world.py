@@ -233,6 +233,9 @@ class World(eqx.Module):
         Arguments:
             camera: an embedded camera name or a :class:`Camera`.
             seed: seed of the illuminant mixtures.
+
+        Returns:
+            The :class:`World`.
         """
         cam = camera if isinstance(camera, Camera) else Camera.from_name(camera)
         sources, n_priority, canonical = _default_sources()
@@ -253,6 +256,13 @@ class World(eqx.Module):
         The 11 lab lights are placed first, the other 88 SFU lights into empty cells, then random
         mixtures; canonical Sylvania 50MR16Q. Needs the external data (see
         :func:`ccjax.data.find_data_file` for the look-up order).
+
+        Arguments:
+            data_dir: the external data's folder (``None``: the look-up order).
+            seed: seed of the illuminant mixtures.
+
+        Returns:
+            The :class:`World`.
         """
         camera = Camera.from_name("Sony DXC-930", data_dir=data_dir)
         lights = data.sfu_illuminants(data_dir)

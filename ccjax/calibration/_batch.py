@@ -45,7 +45,14 @@ class BatchFit(eqx.Module):
     converged: Bool[Array, "B 3"]
 
     def linearise(self, raw: Float[Array, "B M 3"]) -> Float[Array, "B M 3"]:
-        """Each fit's F applied to its raw responses."""
+        """Each fit's F applied to its raw responses.
+
+        Arguments:
+            raw: ``(B, M, 3)`` raw responses, one data set per fit.
+
+        Returns:
+            ``(B, M, 3)`` linear responses.
+        """
         return apply_linearisation(raw, self.a0[:, None], self.a1[:, None], self.exp_rate[:, None], self.black[:, None])
 
 
@@ -154,8 +161,9 @@ def fit_sensors_batch(
     """Fit many data sets of equal shape in one vmapped program (e.g. one per camera).
 
     Arguments:
-        spectra: ``(B, M, 101)``; responses ``(B, M, 3)``; mask ``(B, M)`` (pad unequal data sets
-            with ``False`` rows).
+        spectra: ``(B, M, 101)`` measured spectra, one data set per fit.
+        responses: ``(B, M, 3)`` their camera responses.
+        mask: ``(B, M)`` usable rows (pad unequal data sets with ``False`` rows; ``None``: all).
         chunk_size: data sets per compiled call (bounded memory; default 20); the last chunk is
             padded, so any batch size reuses the program compiled for this chunk size.
         **options: as :func:`ccjax.calibration.fit_sensors` (``smoothness``, ``error``,
@@ -193,8 +201,11 @@ def fit_subsets(
     """Fit one data set many times, each on the rows one mask selects (vmapped, in chunks).
 
     Arguments:
+        spectra: ``(M, 101)`` measured spectra.
+        responses: ``(M, 3)`` their camera responses.
         masks: ``(B, M)`` row selections.
         smoothness: a scalar, or ``(B,)`` one lambda per fit (cross-validation grids).
+        chunk_size: fits per compiled call (bounded memory); the last chunk is padded.
         **options: as :func:`ccjax.calibration.fit_sensors`.
 
     Returns:
@@ -222,6 +233,10 @@ def evaluate_batch(fits: BatchFit, spectra, responses, mask=None, *, linearised:
     """Table 3.1 errors of every fit in ``fits`` on one data set (e.g. all 612 measurements).
 
     Arguments:
+        fits: the batch of fits.
+        spectra: ``(M, 101)`` measured spectra.
+        responses: ``(M, 3)`` their camera responses.
+        mask: ``(M,)`` the rows to score (``None``: all).
         linearised: True when ``responses`` are raw and each fit's own F is to be applied (joint
             fits); False when they are already linear.
 
@@ -308,10 +323,13 @@ def fit_sensors_cv(
     held-out error in Fig. 3.6. All ``len(smoothness) x folds`` fits run as one vmapped batch.
 
     Arguments:
+        spectra: ``(M, 101)`` measured spectra.
+        responses: ``(M, 3)`` their camera responses.
         smoothness: candidate lambdas (default: 11 values from 0.01 to 3, geometric).
         folds: K.
         seed: NumPy seed of the fold assignment.
         mask: optional rows to use at all.
+        name: the fitted sensors' name.
         **options: as :func:`ccjax.calibration.fit_sensors`.
 
     Returns:

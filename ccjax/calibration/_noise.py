@@ -29,7 +29,14 @@ class NoiseModel(eqx.Module):
     variance: Float[Array, "N C"]
 
     def predict(self, mean: Float[Array, "... C"]) -> Float[Array, "... C"]:
-        """Modelled variance at the given mean responses."""
+        """Modelled variance at the given mean responses.
+
+        Arguments:
+            mean: mean responses, the channels last.
+
+        Returns:
+            The variance, the shape of ``mean``.
+        """
         return self.gain * jnp.asarray(mean) + self.floor
 
 

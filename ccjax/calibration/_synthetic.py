@@ -206,7 +206,11 @@ class SyntheticCalibration:
         return float(np.sqrt(np.mean(rel[self.usable] ** 2)))
 
     def usable_data(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(spectra, raw)`` of the usable measurements only (what a real experiment would keep)."""
+        """The usable measurements only (what a real experiment would keep).
+
+        Returns:
+            ``(spectra, raw)``: ``(M, 101)`` spectra and ``(M, 3)`` raw responses.
+        """
         return self.spectra[self.usable], self.raw[self.usable]
 
 

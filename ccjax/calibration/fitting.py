@@ -87,13 +87,26 @@ class SensorFit(eqx.Module):
     status: FitStatus
 
     def fitted_linearisation(self) -> Linearisation:
-        """The fitted F; only fits with ``linearisation="offset"`` or ``"exp"`` have one."""
+        """The fitted F; only fits with ``linearisation="offset"`` or ``"exp"`` have one.
+
+        Returns:
+            The fitted :class:`Linearisation`.
+        """
         if self.linearisation is None:
             raise ValueError(f"{self.camera.name}: fitted to linear data, there is no linearisation")
         return self.linearisation
 
     def evaluate(self, spectra, raw, mask=None) -> FitErrors:
-        """Table 3.1 errors of this model on other measurements (raw responses are linearised by F)."""
+        """Table 3.1 errors of this model on other measurements (raw responses are linearised by F).
+
+        Arguments:
+            spectra: ``(M, 101)`` measured spectra.
+            raw: ``(M, 3)`` their raw camera responses.
+            mask: ``(M,)`` the rows to score (``None``: all).
+
+        Returns:
+            The :class:`FitErrors`.
+        """
         spectra, raw = check_data(spectra, raw)
         linear = self.linearisation(raw) if self.linearisation is not None else jnp.asarray(raw)
         return fit_errors(matmul(jnp.asarray(spectra), self.sensors.astype(jnp.asarray(spectra).dtype)), linear, mask)

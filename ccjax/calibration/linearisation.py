@@ -31,7 +31,17 @@ class Linearisation:
     @classmethod
     def per_channel(cls, a0, a1, exp_rate, black) -> Linearisation:
         """Build F from per-channel values: each argument a scalar (the same for every channel) or
-        three numbers (R, G, B)."""
+        three numbers (R, G, B).
+
+        Arguments:
+            a0: offset.
+            a1: exponential term's amplitude (0: the offset-only form).
+            exp_rate: the exponential rate ``C``.
+            black: the camera black ``b``.
+
+        Returns:
+            The :class:`Linearisation`.
+        """
 
         def triple(values) -> tuple[float, float, float]:
             r, g, b = (float(v) for v in np.broadcast_to(np.asarray(values, np.float64), (3,)))

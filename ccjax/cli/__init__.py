@@ -32,7 +32,9 @@ if TYPE_CHECKING:
     from types import ModuleType
 
     GROUPS: tuple[ModuleType, ...]
+    """The command groups, in ``ccjax --help`` order (:func:`groups`, imported on first use)."""
     COMMANDS: list[Callable[..., None]]
+    """Every group's ``add_<command>`` functions, in ``ccjax --help`` order (imported on first use)."""
 
 
 def groups() -> tuple[ModuleType, ...]:

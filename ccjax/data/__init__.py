@@ -177,6 +177,8 @@ SFU_LAB_LIGHTS: dict[str, str] = {
     "syl-cwf": "Sylvania Cool White Fluorescent",
     "ph-ulm": "Philips Ultralume Fluorescent",
 }
+"""The 11 lab lights of SFU-321 (Barnard 1999 §4.4): each light code of the data set's file names to
+the light's name in the SFU illuminant file (:func:`sfu_illuminants`)."""
 
 
 @dataclass(frozen=True)

@@ -101,7 +101,14 @@ class Padding:
     @staticmethod
     def combine(paddings: "typing.Iterable[Padding]") -> "Padding":
         """The padding rule of several models run on the same scenes: every budget of each, and
-        counted slots only when every model with budgets counts them (the largest threshold)."""
+        counted slots only when every model with budgets counts them (the largest threshold).
+
+        Arguments:
+            paddings: the models' padding rules.
+
+        Returns:
+            The combined :class:`Padding`.
+        """
         paddings = list(paddings)
         budgets = tuple(sorted({b for p in paddings for b in p.budgets if b > 0}))
         with_budgets = [p for p in paddings if p.budgets]
@@ -164,8 +171,14 @@ class AbstractEstimator(eqx.Module):
 
     @abc.abstractmethod
     def block_size(self, backend: str) -> int | None:
-        """Scenes per vmapped block of :func:`estimate_batch` on ``backend`` (``"cpu"``,
-        ``"gpu"``, ``"tpu"``); ``None``: one ``vmap`` over the whole batch."""
+        """Scenes per vmapped block of :func:`estimate_batch` on ``backend``.
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"``.
+
+        Returns:
+            The block size, or ``None``: one ``vmap`` over the whole batch.
+        """
 
     @abc.abstractmethod
     def __call__(self, x: Float[Array, "..."], mask: Bool[Array, "..."]) -> Estimate:
@@ -179,7 +192,14 @@ class AbstractUnblockedEstimator(AbstractEstimator):
     padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
     def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
+        """One ``vmap`` over the whole batch on every backend.
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"`` (not used).
+
+        Returns:
+            ``None``.
+        """
         return None
 
 
@@ -287,7 +307,14 @@ def estimate_batch(model: AbstractEstimator, x: Float[Array, "B ..."], mask: Boo
 
 
 def input_kind_of(model) -> str:
-    """``"surfaces"`` or ``"image"``; ``ValueError`` when ``model`` is not an estimator."""
+    """The input kind of an estimator (``ValueError`` when ``model`` is not one).
+
+    Arguments:
+        model: a fitted estimator.
+
+    Returns:
+        ``"surfaces"`` or ``"image"``.
+    """
     if not isinstance(model, AbstractEstimator):
         raise ValueError(f"method: expected a fitted estimator (AbstractEstimator), got {type(model).__name__}")
     return model.input_kind
@@ -332,6 +359,13 @@ def pairwise_reduce(values: Float[Array, "P ..."], op) -> Float[Array, "..."]:
     non-negative data (odd lengths are padded with zeros), but each step is an element-wise op on
     contiguous blocks, which XLA vectorises well; a direct reduction over the surface axis with a
     trailing RGB axis of 3 does not (2–3x slower on CPU, measured in ``benchmarks/simple.py``).
+
+    Arguments:
+        values: ``(P, ...)`` the values to reduce over their leading axis.
+        op: the element-wise binary reduction (``jnp.add``, ``jnp.maximum``).
+
+    Returns:
+        The reduction, ``values.shape[1:]``.
     """
     while values.shape[0] > 1:
         if values.shape[0] % 2:
@@ -349,6 +383,14 @@ def with_fallback(illuminant: Float[Array, "3"], usable, fallback: Float[Array, 
     of the statistics methods scale with it. The sum, not the largest channel: a sharpened
     estimate can have a negative channel, and Table 5.1's protocol falls back when the sum is not
     positive.
+
+    Arguments:
+        illuminant: ``(3,)`` the estimate.
+        usable: a boolean scalar: whether the method produced an estimate.
+        fallback: ``(3,)`` the estimate used otherwise.
+
+    Returns:
+        The :class:`Estimate`, ``ok`` False when the fallback was taken.
     """
     usable = usable & jnp.all(jnp.isfinite(illuminant)) & (jnp.sum(illuminant) > 0)
     safe = jnp.where(usable, jnp.nan_to_num(illuminant), fallback)
@@ -392,6 +434,7 @@ def validate_scene(rgb, mask, *, name: str = "rgb") -> tuple[np.ndarray, np.ndar
     Arguments:
         rgb: ``(P, 3)`` or ``(B, P, 3)`` non-negative finite floats.
         mask: ``None`` (all valid) or booleans of shape ``rgb.shape[:-1]``.
+        name: the argument's name in the error messages.
 
     Returns:
         ``(rgb, mask)`` as NumPy float32 / bool arrays.
@@ -406,6 +449,7 @@ def validate_image(image, mask, *, name: str = "image") -> tuple[np.ndarray, np.
     Arguments:
         image: ``(H, W, 3)`` or ``(B, H, W, 3)`` non-negative finite floats.
         mask: ``None`` (all valid) or booleans of shape ``image.shape[:-1]``.
+        name: the argument's name in the error messages.
 
     Returns:
         ``(image, mask)`` as NumPy float32 / bool arrays.

@@ -140,8 +140,17 @@ def register(
 
 
 def lookup(label: str) -> tuple[Entry, re.Match]:
-    """The entry whose pattern matches ``label`` and the match; ``ValueError`` listing the known
-    labels when none does."""
+    """The entry whose pattern matches ``label``.
+
+    Arguments:
+        label: a registry label.
+
+    Returns:
+        ``(entry, match)``: the :class:`Entry` and its pattern's match.
+
+    Raises:
+        ValueError: no pattern matches (the message lists the known labels).
+    """
     _load_families()
     for entry in _ENTRIES:
         match = entry.pattern.fullmatch(label)

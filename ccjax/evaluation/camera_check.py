@@ -101,7 +101,11 @@ class CurveCheck:
         return self.distance <= self.threshold
 
     def message(self) -> str:
-        """One line: the measured distance, the threshold and the verdict."""
+        """The check in one line.
+
+        Returns:
+            The measured distance, the threshold and the verdict.
+        """
         verdict = (
             "consistent with its curves"
             if self.passed

@@ -59,5 +59,9 @@ class TrainingOptions:
             raise ValueError(f"epochs: expected a positive integer, got {self.epochs}")
 
     def schedule_changes(self) -> dict[str, int]:
-        """The fields of a family's schedule these options set (:func:`ccjax.training.default_schedule`)."""
+        """The fields of a family's schedule these options set (:func:`ccjax.training.default_schedule`).
+
+        Returns:
+            ``{field: value}`` of the options that are set.
+        """
         return {"seed": self.seed} if self.epochs is None else {"seed": self.seed, "epochs": self.epochs}

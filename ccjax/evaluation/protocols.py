@@ -64,11 +64,19 @@ class AbstractProtocol(eqx.Module):
 
     @abc.abstractmethod
     def trained_labels(self) -> tuple[str, ...]:
-        """The labels this protocol trains (reported as ``"<label> trained"``)."""
+        """The labels this protocol trains (reported as ``"<label> trained"``).
+
+        Returns:
+            The registry labels.
+        """
 
     @abc.abstractmethod
     def reads_fold_column(self) -> bool:
-        """Whether the ground truth's fold column is read (and checked)."""
+        """Whether the ground truth's fold column is read (and checked).
+
+        Returns:
+            True when the protocol uses the CSV's folds.
+        """
 
     @abc.abstractmethod
     def rounds(self, cameras: Sequence[str | None], log: Callable[[str], None] | None) -> list[Round]:

@@ -81,7 +81,14 @@ class ImageResults:
         )
 
     def angular(self, method: str) -> np.ndarray:
-        """``(N,)`` angular errors (degrees) of ``method`` against the ground truth."""
+        """The angular errors of one method against the ground truth.
+
+        Arguments:
+            method: a method of these results.
+
+        Returns:
+            ``(N,)`` the errors in degrees, one per image.
+        """
         from ccjax.metrics import angular_error
 
         return np.asarray(
@@ -89,8 +96,14 @@ class ImageResults:
         )
 
     def status_counts(self, method: str) -> dict[str, int]:
-        """How many images got each :class:`~ccjax.estimators.base.Status` other than ``ESTIMATED``
-        (``{"relaxed": n, "no_data": n, "empty_set": n}``, zero counts left out)."""
+        """How many images got each :class:`~ccjax.estimators.base.Status` other than ``ESTIMATED``.
+
+        Arguments:
+            method: a method of these results.
+
+        Returns:
+            ``{"relaxed": n, "no_data": n, "empty_set": n}``, zero counts left out.
+        """
         codes = self.status.get(method)
         if codes is None:  # results built without status codes: only ok is known
             return {"not_ok": int(np.sum(~self.ok[method]))} if not np.all(self.ok[method]) else {}
@@ -102,9 +115,17 @@ class ImageResults:
         return counts
 
     def summary(self, method: str, *, seed: int = 0) -> dict:
-        """The field's statistics of the angular error (:func:`ccjax.metrics.error_statistics`:
-        mean, median, trimean, best/worst 25 %, 95th percentile, max, bootstrap 95 % intervals
-        of mean and median), the not-ok share, the status counts, seconds and warm-up seconds."""
+        """One method's summary.
+
+        Arguments:
+            method: a method of these results.
+            seed: seed of the bootstrap intervals.
+
+        Returns:
+            The field's statistics of the angular error (:func:`ccjax.metrics.error_statistics`:
+            mean, median, trimean, best/worst 25 %, 95th percentile, max, bootstrap 95 % intervals
+            of mean and median), the not-ok share, the status counts, seconds and warm-up seconds.
+        """
         from ccjax.metrics import error_statistics
 
         row: dict = error_statistics(self.angular(method), seed=seed) if len(self.paths) else {}
@@ -116,8 +137,12 @@ class ImageResults:
         return row
 
     def table(self) -> str:
-        """Angular error statistics (degrees) per method, then each method's input, time and
-        fallbacks, for pasting into a report."""
+        """The results as text, for pasting into a report.
+
+        Returns:
+            Angular error statistics (degrees) per method, then each method's input, time and
+            fallbacks.
+        """
         width = max([24, *(len(method) + 2 for method in self.estimates)])
         header = (
             f"{'method':<{width}}{'mean':>8}{'median':>8}{'trimean':>9}{'best25':>8}{'worst25':>9}{'p95':>8}"
@@ -151,7 +176,11 @@ class ImageResults:
         return "\n".join(lines)
 
     def records(self) -> list[dict]:
-        """One record per image and method (path, method, illuminant, rg, ok, status, angular error)."""
+        """The results as records.
+
+        Returns:
+            One dict per image and method (path, method, illuminant, rg, ok, status, angular error).
+        """
         from ccjax._colour import rg_numpy
 
         rows = []

@@ -81,8 +81,11 @@ class PretrainingCurve:
         return rows
 
     def table(self) -> str:
-        """The curve as text: one line per fraction, both arms' mean and median (mean +- sd over
-        the subsets)."""
+        """The curve as text.
+
+        Returns:
+            One line per fraction, both arms' mean and median (mean +- sd over the subsets).
+        """
         lines = [
             f"{self.method} on photographs, pretrained on images rendered with {self.camera}'s curves: angular "
             "error (degrees), errors pooled over the folds, mean +- sd over the subsets",

@@ -131,7 +131,11 @@ class Reproduction:
     notes: list[str] = field(default_factory=list)
 
     def report(self) -> Report:
-        """The rows as a :class:`Report`: the cells, then the ±10/15/20 % bands and the orderings."""
+        """The rows as a report.
+
+        Returns:
+            The :class:`Report`: the cells, then the ±10/15/20 % bands and the orderings.
+        """
         footer = []
         if self.rows:
             differences = np.abs([row["relative_difference"] for row in self.rows])
@@ -149,8 +153,12 @@ class Reproduction:
 
     def checks(self) -> list[str]:
         """The thesis' claims on this table (``thesis.CHECKS``: pairs, ratios, best rows, spreads),
-        each checked on our values and marked ``ok`` or ``MISS``; claims whose cells were not run
-        are left out."""
+        checked on our values.
+
+        Returns:
+            One line per claim, marked ``ok`` or ``MISS``; claims whose cells were not run are left
+            out.
+        """
         from ccjax import thesis
 
         ours = {(row["method"], row["column"]): row["ours"] for row in self.rows}
@@ -171,7 +179,11 @@ class Reproduction:
         return self.report().text()
 
     def orderings(self) -> list[str]:
-        """The thesis' orderings for this table (``thesis.ORDERINGS``), checked on our values."""
+        """The thesis' orderings for this table (``thesis.ORDERINGS``), checked on our values.
+
+        Returns:
+            One line per ordering.
+        """
         from ccjax import thesis
 
         ours = {(row["method"], row["column"]): row["ours"] for row in self.rows}
@@ -246,6 +258,13 @@ def check_claim(claim: tuple, ours: dict) -> str | None:
     Kinds: ``("less", a, b, column)``; ``("ratio", a, b, column, f)`` (``a <= f b``); ``("best",
     rows, "gamut", column)`` (every row of ``rows`` beats every other gamut-mapping row run);
     ``("spread", a, columns, low, high)`` (``low <= max / min <= high`` over the columns).
+
+    Arguments:
+        claim: one entry of ``thesis.CHECKS``.
+        ours: our values, ``(method, column) -> value``.
+
+    Returns:
+        A line ending in ``ok`` or ``MISS``, or ``None`` when a cell it needs is missing.
     """
     kind = claim[0]
     mark = lambda holds: "ok" if holds else "MISS"
@@ -348,7 +367,14 @@ def reproduce(
 
 def characterisation_notes(world: World) -> list[str]:
     """The fluorescent characterisation's prediction error per surface (§7.1, reported with
-    Table 7.2): NNLS from the measurement lights, predicted under the world's test lights."""
+    Table 7.2): NNLS from the measurement lights, predicted under the world's test lights.
+
+    Arguments:
+        world: the world whose test lights the surfaces are predicted under.
+
+    Returns:
+        The report's lines.
+    """
     from ccjax import materials
     from ccjax.estimators.gamut import MEASUREMENT_LIGHTS, characterised_fluorescents
 

@@ -72,7 +72,11 @@ class Report:
         return [Column(key, gap=0 if i == 0 else 2) for i, key in enumerate(keys)]
 
     def text(self) -> str:
-        """The aligned text table, between the title and footer lines."""
+        """The report as text.
+
+        Returns:
+            The aligned text table, between the title and footer lines.
+        """
         columns = self._columns()
         cells = [[column.cell(row) for column in columns] for row in self.rows]
         widths = []
@@ -94,7 +98,11 @@ class Report:
         return "\n".join([*self.title, head.rstrip(), *(line.rstrip() for line in body), *self.footer])
 
     def to_csv(self) -> str:
-        """Every key of the rows, one line per row, with a header line."""
+        """The rows as CSV.
+
+        Returns:
+            Every key of the rows, one line per row, with a header line.
+        """
         fieldnames = list(self.rows[0]) if self.rows else [c.key for c in self._columns()]
         buffer = io.StringIO()
         writer = csv.DictWriter(buffer, fieldnames=fieldnames)
@@ -103,5 +111,9 @@ class Report:
         return buffer.getvalue()
 
     def to_json(self) -> str:
-        """A JSON object: the metadata fields, then ``rows``."""
+        """The report as JSON.
+
+        Returns:
+            A JSON object: the metadata fields, then ``rows``.
+        """
         return json.dumps({**self.metadata, "rows": self.rows}, indent=1)

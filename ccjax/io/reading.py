@@ -49,8 +49,10 @@ from ccjax.io.png import png_encoding, png_header, read_png
 from ccjax.io.srgb import decode_srgb_codes
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
+"""The suffixes read as camera raw files (lower case; read through ``rawpy``)."""
 JPEG_SUFFIXES = (".jpg", ".jpeg")
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", *JPEG_SUFFIXES, *RAW_SUFFIXES)
+"""Every suffix :func:`read_image` reads (lower case): PNG, TIFF, JPEG and the raw formats."""
 
 CLIP_FRACTION = 0.98
 """Default clip level as a fraction of the saturation level (module docstring)."""

@@ -185,7 +185,14 @@ class FluorescentSurfaces(eqx.Module):
 
     def total_radiance_factor(self, illuminant: Float[ArrayLike, "101"]) -> Float[Array, "F 101"]:
         """``L / E`` under one illuminant (the "reflectance" a spectroradiometer would report; > 1
-        where the surface fluoresces). Zero where ``E`` is zero."""
+        where the surface fluoresces).
+
+        Arguments:
+            illuminant: ``(101,)`` the illuminant's spectrum ``E``.
+
+        Returns:
+            ``(F, 101)`` one factor per surface; zero where ``E`` is zero.
+        """
         light = jnp.asarray(illuminant, dtype=self.reflectance.dtype)
         radiance = self.radiance(light)
         return jnp.where(light > 0, radiance / jnp.where(light > 0, light, 1.0), 0.0)
@@ -287,7 +294,14 @@ class Characterisation(eqx.Module):
     responses: Float[Array, "F K 101"]
 
     def weights(self, illuminants: Float[ArrayLike, "*lights 101"]) -> np.ndarray:
-        """NNLS weights ``(..., K)`` of each illuminant in the measurement lights (:func:`nnls_weights`)."""
+        """Each illuminant's NNLS weights in the measurement lights (:func:`nnls_weights`).
+
+        Arguments:
+            illuminants: ``(..., 101)`` spectra.
+
+        Returns:
+            ``(..., K)`` the weights of the ``K`` measurement lights.
+        """
         return nnls_weights(np.asarray(self.lights, dtype=np.float64), illuminants)
 
     def radiance(self, illuminants: Float[ArrayLike, "*lights 101"]) -> Float[Array, "*lights F 101"]:
@@ -340,7 +354,11 @@ class PredictionError:
     rg_max: np.ndarray
 
     def rows(self) -> list[dict[str, float | str]]:
-        """One dict per surface (for tables and JSON)."""
+        """The errors as rows (for tables and JSON).
+
+        Returns:
+            One dict per surface.
+        """
         return [
             {"surface": name, "spectral": float(s), "rgb": float(c), "rg": float(r), "rg_max": float(m)}
             for name, s, c, r, m in zip(self.names, self.spectral, self.rgb, self.rg, self.rg_max)

@@ -48,7 +48,17 @@ class Preprocessing:
 
     @classmethod
     def parse(cls, name: str) -> Preprocessing:
-        """The method called ``name`` (class docstring); ``ValueError`` for unknown names."""
+        """The method called ``name`` (class docstring).
+
+        Arguments:
+            name: the method's name.
+
+        Returns:
+            The :class:`Preprocessing`.
+
+        Raises:
+            ValueError: an unknown name.
+        """
         if name == PIXELS:
             return cls(name=name, block=1, pixels=True)
         text = "seg-5-0.05-0.1" if name == "generic" else name
@@ -74,8 +84,15 @@ class Preprocessing:
         )
 
     def apply(self, rgb: np.ndarray, usable: np.ndarray) -> np.ndarray:
-        """The surface list ``(n, 3)`` for one image (``usable`` from :func:`usable_pixels`;
-        ``pixels``: the usable pixels themselves, in scan order)."""
+        """The surface list of one image.
+
+        Arguments:
+            rgb: ``(H, W, 3)`` the image.
+            usable: ``(H, W)`` its usable pixels (:func:`usable_pixels`).
+
+        Returns:
+            ``(n, 3)`` the surfaces (``pixels``: the usable pixels themselves, in scan order).
+        """
         if self.pixels:
             return rgb[usable]
         if self.segmentation is not None:
@@ -89,7 +106,15 @@ class Preprocessing:
         return data
 
     def max_count(self, height: int, width: int) -> int:
-        """The most surfaces :meth:`apply` can return for an ``height x width`` image."""
+        """The most surfaces :meth:`apply` can return for an image of this size.
+
+        Arguments:
+            height: the image's height in pixels.
+            width: its width.
+
+        Returns:
+            The largest surface count.
+        """
         if self.pixels:
             return height * width
         if self.segmentation is not None:

@@ -52,9 +52,16 @@ class CompileLog:
         return self.programs - self.cache_hits
 
     def seconds(self, since: float = float("-inf")) -> float:
-        """Wall-clock seconds after ``since`` during which some program was being traced, lowered
-        or compiled: the union of the steps' spans (a jit traced inside another one's trace, and
-        programs compiled by several threads at once, count once)."""
+        """Time spent compiling: the union of the steps' spans (a jit traced inside another one's
+        trace, and programs compiled by several threads at once, count once).
+
+        Arguments:
+            since: a ``time.perf_counter()`` reading; only the time after it counts.
+
+        Returns:
+            Wall-clock seconds after ``since`` during which some program was being traced, lowered
+            or compiled.
+        """
         with self._lock:
             spans = sorted((max(start, since), end) for start, end in self.spans if end > since)
         total, reach = 0.0, float("-inf")

@@ -87,7 +87,11 @@ class MappedFolder:
         self.label = self.label or self.camera
 
     def mapped_lights(self) -> np.ndarray:
-        """``(N, 3)`` the ground truth in the target camera, brightest channel 1."""
+        """The ground truth in the target camera.
+
+        Returns:
+            ``(N, 3)`` the lights, brightest channel 1.
+        """
         if self.camera_map is None:
             return self.lights / self.lights.max(axis=1, keepdims=True)
         return np.asarray(jax.vmap(self.camera_map.map_light)(jnp.asarray(self.lights)))
@@ -138,21 +142,40 @@ class PooledImages:
         return [f"{part.label}/{name}" for part in self.parts for name in part.names]
 
     def usable(self) -> list[int]:
-        """The items whose header passed the checks."""
+        """The items whose header passed the checks.
+
+        Returns:
+            Their indices.
+        """
         return [index for index, size in enumerate(self.sizes) if size is not None]
 
     def image_sizes(self, items: Iterable[int] | None = None) -> list[tuple[int, int]]:
-        """The distinct image sizes among ``items`` (default: every item)."""
+        """The distinct image sizes among some items.
+
+        Arguments:
+            items: the items' indices (``None``: every item).
+
+        Returns:
+            The distinct ``(height, width)``.
+        """
         sizes = self.sizes
         chosen = range(len(sizes)) if items is None else items
         return sorted({size for index in chosen if (size := sizes[index]) is not None})
 
     def lights(self) -> np.ndarray:
-        """``(N, 3)`` every item's ground truth mapped into the target camera (brightest channel 1)."""
+        """Every item's ground truth mapped into the target camera.
+
+        Returns:
+            ``(N, 3)`` the lights, brightest channel 1.
+        """
         return np.concatenate([part.mapped_lights() for part in self.parts]).astype(np.float32)
 
     def counts(self) -> dict[str, int]:
-        """``{folder label: images}`` of each part."""
+        """The images of each part.
+
+        Returns:
+            ``{folder label: images}``.
+        """
         return {part.label: len(part.images) for part in self.parts}
 
     def prepared(

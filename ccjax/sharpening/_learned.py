@@ -71,7 +71,8 @@ def scene_losses(
         world: the world (canonical light and responses).
         train: ``(I, S, 3)`` database under the training lights.
         whites: ``(I, 3)`` camera RGB of white under each training light.
-        lights: ``(B,)`` light index of each scene; ``surfaces`` ``(B, P)`` its reflectances.
+        lights: ``(B,)`` light index of each scene.
+        surfaces: ``(B, P)`` each scene's reflectance indices.
         plain: the unsharpened model of ``label`` (fitted once).
 
     Returns:

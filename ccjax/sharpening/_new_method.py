@@ -94,7 +94,15 @@ class DatabaseStatistics(eqx.Module):
 
     @classmethod
     def of(cls, train: Float[Array, "I S 3"], canonical: Float[Array, "S 3"]) -> DatabaseStatistics:
-        """The statistics of ``train`` (``(I, S, 3)``) and ``canonical`` (``(S, 3)``)."""
+        """The statistics of a database.
+
+        Arguments:
+            train: ``(I, S, 3)`` the surfaces under the training lights.
+            canonical: ``(S, 3)`` the surfaces under the canonical light.
+
+        Returns:
+            The :class:`DatabaseStatistics`.
+        """
         return cls(
             gram=einsum("isa,isb->iab", train, train),
             cross=einsum("isa,sb->iab", train, canonical),
@@ -234,6 +242,7 @@ def new_sharpening(
             the scale and a huge finite weight only makes the problem stiff).
         candidates: increasing ``lambda_P`` values tried, then ``bisections`` log-scale
             bisections between the last failing and the first passing one.
+        bisections: how many.
         max_steps, tolerance: optimiser limits.
 
     Returns:

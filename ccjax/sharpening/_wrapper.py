@@ -94,7 +94,14 @@ class Sharpened(AbstractSurfaceEstimator):
         return Padding.combine([self.inner.padding, self.plain.padding])
 
     def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
+        """One ``vmap`` over the whole batch on every backend.
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"`` (not used).
+
+        Returns:
+            ``None``.
+        """
         return None
 
     def estimate_and_revert(

@@ -39,7 +39,14 @@ class Examples(eqx.Module):
         return int(self.x.shape[0])
 
     def take(self, indices) -> Examples:
-        """The examples at ``indices`` (a 1-D integer array)."""
+        """A subset of the examples.
+
+        Arguments:
+            indices: a 1-D integer array.
+
+        Returns:
+            The :class:`Examples` at ``indices``.
+        """
         indices = np.asarray(indices, np.int64)
         names = tuple(self.names[i] for i in indices) if self.names else ()
         return Examples(self.x[indices], self.mask[indices], self.illuminant[indices], names)

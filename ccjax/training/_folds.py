@@ -207,7 +207,8 @@ def train_on_images(
     trained on every image.
 
     Arguments:
-        directory: the image folder; ground_truth: its CSV.
+        directory: the image folder.
+        ground_truth: its CSV.
         method: a registry label of a trainable family.
         camera: camera of the default world the start is fitted to (None: ``World.default``'s).
             The model file records it when it is given or the family is world-based (its start

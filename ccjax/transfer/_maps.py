@@ -133,7 +133,14 @@ class GlobalMap(AbstractCameraMap):
             raise ValueError(f"matrix: expected shape (3, 3), got {np.shape(self.matrix)}")
 
     def matrix_for(self, light: Float[ArrayLike, "3"]) -> Float[Array, "3 3"]:
-        """The one matrix (``light`` is checked, not used)."""
+        """The one matrix.
+
+        Arguments:
+            light: ``(3,)`` the scene's light (checked, not used).
+
+        Returns:
+            ``(3, 3)`` the map.
+        """
         _checked_light(light, self.matrix)
         return self.matrix
 
@@ -206,5 +213,12 @@ class PerLightMap(AbstractCameraMap):
         return jnp.zeros(self.matrices.shape[0], blend.dtype).at[nearest[:-1]].set(blend)
 
     def matrix_for(self, light: Float[ArrayLike, "3"]) -> Float[Array, "3 3"]:
-        """The blend of the nearest world lights' matrices (weights: :meth:`weights`)."""
+        """The map for one light.
+
+        Arguments:
+            light: ``(3,)`` the scene's light in the source camera.
+
+        Returns:
+            ``(3, 3)`` the blend of the nearest world lights' matrices (weights: :meth:`weights`).
+        """
         return einsum("l,lij->ij", self.weights(light), self.matrices)

@@ -13,6 +13,7 @@ from ccjax._colour import rg, rg_bin, rg_numpy
 RG_BINS = 50
 """(r,g) divisions: bins of width 0.02, as the thesis' C-by-C and neural net (§4.5.4)."""
 N_RG_CELLS = RG_BINS * (RG_BINS + 1) // 2  # bins (i, j) with i + j <= 49
+"""The (r,g) cells inside the chromaticity triangle: bins ``(i, j)`` with ``i + j <= 49`` (1275)."""
 
 
 def rg_bins(rgb: Float[Array, "... 3"]) -> Int[Array, "... 2"]:

@@ -158,13 +158,29 @@ class ColourByCorrelation3D(AbstractWorldSurfaceEstimator):
         return valid, initial, relative, level_scores
 
     def brightness_levels(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, " Q"]:
-        """The hypothesised illuminant brightnesses ``b_q`` (R+G+B of white) for this scene."""
+        """The hypothesised illuminant brightnesses ``b_q`` (R+G+B of white) for this scene.
+
+        Arguments:
+            rgb: ``(P, 3)`` the scene's surfaces.
+            mask: ``(P,)`` the valid ones.
+
+        Returns:
+            ``(Q,)`` the brightness levels.
+        """
         _, _, initial, relative = self._prepare(rgb, mask)
         return initial * relative
 
     def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, "Q I"]:
         """Normalised log-posterior over (brightness level, training illuminant), materialised
-        (``__call__`` never holds it); uniform priors over illuminants and log-brightness."""
+        (``__call__`` never holds it); uniform priors over illuminants and log-brightness.
+
+        Arguments:
+            rgb: ``(P, 3)`` the scene's surfaces.
+            mask: ``(P,)`` the valid ones.
+
+        Returns:
+            ``(Q, I)`` the log-posterior.
+        """
         _, _, relative, level_scores = self._scorer(rgb, mask)
         scores = jax.lax.map(level_scores, relative)
         return jax.nn.log_softmax(scores.reshape(-1)).reshape(scores.shape)
@@ -240,7 +256,8 @@ def fit_brightness(
         method: discretisation remedy, ``"presence"`` (2, default) or ``"counts"`` (1).
         specular: specular training world (``SPEC-`` labels; True for the thesis' recipe).
         l_bins: L bins per unit of ``L / L_white`` (50 for synthetic data, 25 for images, §10.2).
-        sigma, sigma_l: matrix smoothing in bins (r,g and L); floor: probability floor.
+        sigma, sigma_l: matrix smoothing in bins (r,g and L).
+        floor: probability floor.
         brightness_factor: ``B0 = factor x mean(R+G+B)`` (4.3, §10.1).
         brightness_range: hypotheses within ``[B0 / k, k B0]`` (k = 3).
         n_levels: log-spaced brightness levels (101).

@@ -56,7 +56,15 @@ class ColourByCorrelation(AbstractWorldSurfaceEstimator):
     estimates_brightness: ClassVar[bool] = False
 
     def log_posterior(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Float[Array, " I"]:
-        """Normalised log-posterior over the training illuminants (uniform prior)."""
+        """Normalised log-posterior over the training illuminants (uniform prior).
+
+        Arguments:
+            rgb: ``(P, 3)`` the scene's surfaces.
+            mask: ``(P,)`` the valid ones.
+
+        Returns:
+            ``(I,)`` the log-posterior.
+        """
         valid = valid_pixels(rgb, mask)
         if self.softness is None:
             scores = presence_scores(self.log_probability, rgb, valid)
@@ -140,7 +148,8 @@ def fit_chromaticity(
     Arguments:
         world: the world.
         selector: ``"MAP"``, ``"MMSE"`` or ``"MLM"``.
-        sigma: matrix smoothing in bins; floor: probability floor (see :func:`chromaticity_matrix`).
+        sigma: matrix smoothing in bins (see :func:`chromaticity_matrix`).
+        floor: probability floor (see :func:`chromaticity_matrix`).
         specular: train on specular surfaces as well (``SPEC-`` labels).
         fluorescent: FL training (``FL-`` labels, §7.2): ``True`` for fluorescent surfaces at
             about 15 % of the training occurrences, or that fraction.
@@ -205,6 +214,7 @@ def mlm_width_search(
 
 
 MLM_WIDTHS = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0)
+"""The candidate widths (in bins) :func:`tune_mlm_width` chooses the MLM blur from."""
 
 
 def tune_mlm_width(

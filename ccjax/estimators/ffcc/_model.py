@@ -21,6 +21,7 @@ from ccjax.estimators.ffcc._vonmises import fit_von_mises
 __all__ = ["FFCC", "Posterior", "convolve", "uv_to_rgb"]
 
 BINS = 64
+"""Histogram bins per log-chroma axis (the reference code's ``NUM_BINS``)."""
 BIN_SIZE = 1.0 / 32.0
 """The reference code's histogram for camera-specific models (``NUM_BINS``, ``BIN_SIZE``): 64 bins of
 1/32 cover a log-chroma range of 2 (a factor e^2 between channels) on each axis."""
@@ -113,7 +114,14 @@ class FFCC(AbstractImageEstimator):
     def block_size(self, backend: str) -> int | None:
         """The backend's block (:func:`ccjax.backends.block_scenes`): one ``vmap`` over the whole
         batch streams each image's edge channel and histograms through memory (measured 1.8x
-        slower than blocks of 128 on a CPU)."""
+        slower than blocks of 128 on a CPU).
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"``.
+
+        Returns:
+            Images per vmapped block.
+        """
         return block_scenes(backend)
 
     @property
@@ -123,12 +131,26 @@ class FFCC(AbstractImageEstimator):
 
     def histogram(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "2 n n"]:
         """The image's two-channel histogram on this model's grid
-        (:func:`ccjax.estimators.ffcc._histogram.featurize`)."""
+        (:func:`ccjax.estimators.ffcc._histogram.featurize`).
+
+        Arguments:
+            image: ``(H, W, 3)`` linear camera RGB.
+            mask: ``(H, W)`` usable pixels.
+
+        Returns:
+            ``(2, n, n)``: the pixel and the edge histograms.
+        """
         return featurize(image, mask, origin=self.origin, bins=self.bins, bin_size=self.bin_size, minimum=self.minimum)
 
     def fit_histogram(self, histogram: Float[Array, "2 n n"]) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:
-        """The von Mises fit to the softmax of the scores of ``histogram``: ``(mean (2,),
-        covariance (2, 2))`` in log-chroma units."""
+        """The von Mises fit to the softmax of the scores of ``histogram``.
+
+        Arguments:
+            histogram: ``(2, n, n)`` an image's histograms (:meth:`histogram`).
+
+        Returns:
+            ``(mean (2,), covariance (2, 2))`` in log-chroma units.
+        """
         scores = convolve(histogram, self.filters, self.bias)
         probability = jax.nn.softmax(scores.reshape(-1)).reshape(scores.shape)
         mean, covariance = fit_von_mises(probability, self.diagonal)

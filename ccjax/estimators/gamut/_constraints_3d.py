@@ -349,7 +349,8 @@ def evaluate(model, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Grid:
 
     Arguments:
         model: a fitted :class:`~ccjax.estimators.gamut.GamutModel`.
-        rgb: ``(P, 3)`` observed camera RGBs; ``mask``: ``(P,)`` valid ones.
+        rgb: ``(P, 3)`` observed camera RGBs.
+        mask: ``(P,)`` the valid ones.
 
     Returns:
         A :class:`Grid`: the fine grid of illuminant directions with each direction's constraint

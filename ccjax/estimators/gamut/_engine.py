@@ -97,8 +97,12 @@ class GridOptions:
     levels: int = _relaxation.LEVELS
 
     def budgets(self) -> tuple[int, ...]:
-        """The observation counts at which the engine takes another Python branch (sorted, the
-        unset ones left out): padding a scene across one of them changes its path."""
+        """The observation counts at which the engine takes another Python branch: padding a scene
+        across one of them changes its path.
+
+        Returns:
+            The counts, sorted, the unset ones left out.
+        """
         limits = (self.fine_observations, self.locate_observations, self.large_scene, self.exact_scene)
         return tuple(sorted({limit for limit in limits if limit > 0}))
 

@@ -81,8 +81,15 @@ class Extension:
 
     @classmethod
     def parse(cls, value) -> Extension:
-        """An :class:`Extension` from ``None``, a prefix string (``"ND"``, ``"SP-FL"``, ``"SP4"``),
-        a tuple of tokens (``("SP", "ND")``) or an :class:`Extension`."""
+        """Read an extension.
+
+        Arguments:
+            value: ``None``, a prefix string (``"ND"``, ``"SP-FL"``, ``"SP4"``), a tuple of tokens
+                (``("SP", "ND")``) or an :class:`Extension`.
+
+        Returns:
+            The :class:`Extension`.
+        """
         if isinstance(value, Extension):
             return value
         if value is None:

@@ -190,7 +190,14 @@ class GamutMapping(AbstractGamutMapEstimator):
 
     def block_size(self, backend: str) -> int | None:
         """The backend's block (:func:`ccjax.backends.block_scenes`: cache-sized on CPU, as large
-        as the device's memory allows on an accelerator)."""
+        as the device's memory allows on an accelerator).
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"``.
+
+        Returns:
+            Scenes per vmapped block.
+        """
         return block_scenes(backend)
 
     def __check_init__(self):
@@ -207,7 +214,15 @@ class GamutMapping(AbstractGamutMapEstimator):
     def reduction_exact(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Bool[Array, ""]:
         """Diagnostic: whether the observation reduction of a large scene kept every observation
         it selected as a support point (False means the fine stage ran on a budgeted subset, so
-        the estimate may differ from the unreduced one). One scene; vmap for batches."""
+        the estimate may differ from the unreduced one). One scene; vmap for batches.
+
+        Arguments:
+            rgb: ``(P, 3)`` the scene's observations.
+            mask: ``(P,)`` the valid ones.
+
+        Returns:
+            A boolean scalar.
+        """
         return evaluate(self.model, rgb, mask).exact
 
 

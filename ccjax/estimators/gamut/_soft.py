@@ -61,7 +61,14 @@ class SoftGamutMapping(AbstractGamutMapEstimator):
     margin: float = eqx.field(static=True, default=0.02)
 
     def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
+        """One ``vmap`` over the whole batch on every backend.
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"`` (not used).
+
+        Returns:
+            ``None``.
+        """
         return None
 
     def __check_init__(self):

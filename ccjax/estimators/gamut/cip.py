@@ -94,14 +94,30 @@ class CIP(AbstractSurfaceEstimator):
         return Padding(self.options.budgets(), None)
 
     def block_size(self, backend: str) -> int | None:
-        """One ``vmap`` over the whole batch on every backend."""
+        """One ``vmap`` over the whole batch on every backend.
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"`` (not used).
+
+        Returns:
+            ``None``.
+        """
         return None
 
     def violation(
         self, rg: Float[Array, "G 2"], rgb: Float[Array, "P 3"], valid: Bool[Array, " P"]
     ) -> Float[Array, " G"]:
-        """The constraint set's per-direction violation (``<= 0`` where feasible); see
-        :func:`~ccjax.estimators.gamut._constraints_cip.violation`."""
+        """The constraint set's per-direction violation; see
+        :func:`~ccjax.estimators.gamut._constraints_cip.violation`.
+
+        Arguments:
+            rg: ``(G, 2)`` candidate illuminant chromaticities.
+            rgb: ``(P, 3)`` the scene's observations.
+            valid: ``(P,)`` the valid ones.
+
+        Returns:
+            ``(G,)`` the violation of each candidate (``<= 0`` where feasible).
+        """
         dtype = rgb.dtype
         return _constraints_cip.violation(
             self.white.astype(dtype),

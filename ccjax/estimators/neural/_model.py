@@ -18,6 +18,7 @@ from ccjax.precision import linear, matmul
 BINS = 50
 """(r,g) bins per axis; cells are ``1 / BINS = 0.02`` wide (§4.5.5)."""
 N_INPUTS = BINS * BINS
+"""The net's inputs: one per (r,g) bin, ``BINS * BINS = 2500`` (§4.5.5)."""
 SIMPLEX_MARGIN = 1e-4
 """Keeps the predicted illuminant strictly inside the chromaticity triangle, so every channel of the
 RGB estimate is positive and the diagonal map to canonical exists."""
@@ -96,7 +97,15 @@ class Mlp(eqx.Module):
         return self._hidden_to_output(linear(self.layers[0], x))
 
     def from_bins(self, bins: jax.Array, weight: Float[Array, " P"]) -> Float[Array, " n_out"]:
-        """The net on a sparse 0/1 input given by :func:`occupied_bins` (same value as ``__call__``)."""
+        """The net on a sparse 0/1 input given by :func:`occupied_bins` (same value as ``__call__``).
+
+        Arguments:
+            bins: the occupied bins' indices (:func:`occupied_bins`).
+            weight: ``(P,)`` each index's weight (0 for padding).
+
+        Returns:
+            ``(n_out,)`` the net's output.
+        """
         first = self.layers[0]
         hidden = matmul(first.weight[:, bins], weight.astype(first.weight.dtype))
         return self._hidden_to_output(hidden if first.bias is None else hidden + first.bias)

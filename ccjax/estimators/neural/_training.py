@@ -62,6 +62,8 @@ RECIPES: dict[str, Recipe] = {
     # Statistics deliberately different from the test protocol's 0.25 / U(0, 2) (§4.5.5, [64]).
     "SP-NEURAL-NET": Recipe(specular=Specular(probability=0.5, max_amount=1.0)),
 }
+"""The training recipe of each registered label: ``NEURAL-NET`` on matte scenes, ``SP-NEURAL-NET`` on
+scenes with specularities (probability 0.5, amount up to 1)."""
 
 
 def training_world(world: World) -> World:
