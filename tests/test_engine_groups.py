@@ -1,5 +1,5 @@
-"""Programs shared by several models and several surface counts (``ccjax.runs``): a group's
-errors are each model's own, a stream reads its own padded width of a wider draw, and the counts
+"""Programs shared by several models and several surface counts (``ccjax.runs``): one statistics
+program serves every model, a stream reads its own padded width of a wider draw, and the counts
 that can share one sampler do so only where its draws are bitwise their own."""
 
 from __future__ import annotations
@@ -23,38 +23,36 @@ def models(default_world):
     return [store.fit(label, default_world) for label in LABELS]
 
 
-def test_a_groups_rows_are_each_models_scene_errors_on_its_own_width(default_world, models):
-    """``group_errors`` on a 16-slot draw read at 8 slots: row k is ``scene_errors(models[k])`` on the
-    8-slot draw of the same keys (statuses bitwise; errors to float32 rounding: a k-model program
-    fuses, so rounds, otherwise)."""
+def test_the_estimate_and_statistics_programs_read_a_streams_own_width(default_world, models):
+    """The engine's two programs on a 16-slot draw read at 8 slots give ``scene_errors`` on the
+    8-slot draw of the same keys, model by model (statuses bitwise; errors to float32 rounding:
+    estimates and statistics are two programs, which XLA fuses, and so rounds, otherwise)."""
     tables = scenes.SceneTables.from_world(default_world)
     keys = scenes.sweep_keys(jax.random.key(3), 6, 0, 40)
     wide = scenes.sample_batch_slots(keys, tables, 6, 16)
     narrow = scenes.sample_batch_slots(keys, tables, 6, 8)
-    got = jax.device_get(eqx.filter_jit(engine.group_errors)(tuple(models), wide, tables.canonical_white, 8))
-    for row, model in enumerate(models):
+    for model in models:
+        illuminant, ok, status = eqx.filter_jit(engine.estimate_scenes)(model, wide.rgb, wide.mask, 8)
+        got = eqx.filter_jit(engine.scene_statistics)(illuminant, wide, tables.canonical_white, 8)
+        got = jax.device_get({**got, "ok": ok, "status": status})
         expected = jax.device_get(eqx.filter_jit(engine.scene_errors)(model, narrow, tables.canonical_white))
         assert set(got) == set(expected)
         for name, values in expected.items():
-            assert got[name].shape == (len(models), 40)
+            assert got[name].shape == (40,)
             if name in ("ok", "status"):
-                np.testing.assert_array_equal(got[name][row], values, err_msg=name)
+                np.testing.assert_array_equal(got[name], values, err_msg=name)
             else:
                 atol = 1e-5 if name == "angular" else 1e-6
-                np.testing.assert_allclose(got[name][row], values, rtol=1e-6, atol=atol, err_msg=name)
+                np.testing.assert_allclose(got[name], values, rtol=1e-6, atol=atol, err_msg=name)
 
 
-def test_models_without_size_branches_share_a_program_and_budgeted_ones_have_their_own(models):
+def test_size_branched_models_compile_first_then_the_statistics_then_the_others(models):
     budgeted = Budgeted(models[1])
     everyone = [models[0], budgeted, models[1], models[2], budgeted, models[3]]
-    # The size-branched programs first (the largest), then the shared group.
-    assert engine.program_groups(everyone, range(6)) == [(1,), (4,), (0, 2, 3, 5)]
-    # A stream runs the models it has not read from the cache: the groups are of those only.
-    assert engine.program_groups(everyone, (3, 1)) == [(1,), (3,)]
-    many = [models[0]] * (engine.GROUP_SIZE + 3)
-    groups = engine.program_groups(many, range(len(many)))
-    assert [len(group) for group in groups] == [engine.GROUP_SIZE, 3]
-    assert sorted(p for group in groups for p in group) == list(range(len(many)))
+    # The size-branched programs first (the largest), then the statistics (None), then the others.
+    assert engine.compile_order(everyone, range(6)) == [1, 4, None, 0, 2, 3, 5]
+    # A stream runs the models it has not read from the cache: its programs are of those only.
+    assert engine.compile_order(everyone, (3, 1)) == [1, None, 3]
 
 
 @pytest.mark.parametrize(

@@ -3,9 +3,11 @@
 A run is a list of :class:`Stream` s, each a number of items cut into chunks of one shape (so a
 program compiles once per shape, and memory stays bounded whatever the number of items). Every
 chunk is placed on the devices by a :class:`Placement` (one device, or the item axis sharded over
-a ``jax.sharding.Mesh``), every model's :func:`scene_errors` program runs on it, and the per-item
-errors and statuses come back to the host, trimmed to the stream's items and to the statistics
-that apply to the model (:func:`applicable`). Programs are traced and compiled on two worker
+a ``jax.sharding.Mesh``), every model's estimate program (:func:`estimate_scenes`) and the
+shared statistics program (:func:`scene_statistics`) run on it (together they give
+:func:`scene_errors`), and the per-item errors and statuses come back to the host, trimmed to the
+stream's items and to the statistics that apply to the model (:func:`applicable`). Programs are
+keyed by what they compute and kept for the process, and are traced and compiled on two worker
 threads ahead of the chunks that need them (:func:`run_streams`).
 """
 
@@ -13,14 +15,14 @@ from __future__ import annotations
 
 import concurrent.futures
 import math
+import threading
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 from tqdm.auto import tqdm
 
 from ccjax import backends, metrics
@@ -67,37 +69,65 @@ def _statistics(e: Float[Array, "B 3"], scenes: Scenes, canonical_white: Float[A
     }
 
 
-def group_errors(
-    models: tuple[AbstractEstimator, ...], scenes: Scenes, canonical_white: Float[Array, " 3"], slots: int | None = None
-) -> dict[str, jax.Array]:
-    """:func:`scene_errors` of several models on one batch, as one program: the statistics are
-    written once and mapped over the models' estimates (so a group of cheap estimators costs one
-    compilation of the statistics, not one per estimator).
+def _narrowed(scenes: Scenes, slots: int | None) -> Scenes:
+    """``scenes`` with only their first ``slots`` surface slots (``None``: all of them)."""
+    if slots is None:
+        return scenes
+    return Scenes(
+        rgb=scenes.rgb[:, :slots],
+        mask=scenes.mask[:, :slots],
+        illuminant=scenes.illuminant,
+        canonical_rgb=scenes.canonical_rgb[:, :slots],
+    )
+
+
+def estimate_scenes(
+    model: AbstractEstimator,
+    rgb: Float[Array, "B P 3"],
+    mask: Bool[Array, "B P"],
+    slots: int | None = None,
+    sharding: jax.sharding.Sharding | None = None,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """One model's estimates of a batch's lights: the engine's estimate program, one per model
+    and batch shape whatever other models a run holds.
 
     Arguments:
-        models: surface estimators.
-        scenes: a :class:`ccjax.scenes.Scenes` batch.
-        canonical_white: the canonical light's camera RGB.
-        slots: the models read the first ``slots`` surface slots of each scene (static; ``None``:
-            all of them), so batches drawn wider than a stream's padded size serve it.
+        model: a surface estimator.
+        rgb: ``(B, P, 3)`` surface RGBs.
+        mask: ``(B, P)``, True where a surface is valid.
+        slots: the model reads the first ``slots`` surface slots (static; ``None``: all of them),
+            so batches drawn wider than a stream's padded size serve it.
+        sharding: where the results live (static; ``None``: where XLA puts them), so that the
+            statistics program compiled for that placement takes them as they are.
 
     Returns:
-        :data:`STATISTICS` names, ``"ok"`` and ``"status"`` -> ``(len(models), B)`` arrays, row
-        ``k`` being ``scene_errors(models[k], ...)``.
+        ``(illuminant (B, 3) in the dtype of rgb, ok (B,), status (B,))``.
     """
     if slots is not None:
-        scenes = Scenes(
-            rgb=scenes.rgb[:, :slots],
-            mask=scenes.mask[:, :slots],
-            illuminant=scenes.illuminant,
-            canonical_rgb=scenes.canonical_rgb[:, :slots],
-        )
-    estimates = [estimate_batch(model, scenes.rgb, scenes.mask) for model in models]
-    illuminants = jnp.stack([estimate.illuminant for estimate in estimates])
-    errors = jax.vmap(lambda e: _statistics(e, scenes, canonical_white))(illuminants)
-    errors["ok"] = jnp.stack([estimate.ok for estimate in estimates])
-    errors["status"] = jnp.stack([estimate.status for estimate in estimates])
-    return errors
+        rgb, mask = rgb[:, :slots], mask[:, :slots]
+    estimate = estimate_batch(model, rgb, mask)
+    out = (estimate.illuminant.astype(rgb.dtype), estimate.ok, estimate.status)
+    if sharding is not None:
+        out = jax.lax.with_sharding_constraint(out, sharding)
+    return out
+
+
+def scene_statistics(
+    illuminant: Float[Array, "B 3"], scenes: Scenes, canonical_white: Float[Array, " 3"], slots: int | None = None
+) -> dict[str, jax.Array]:
+    """The :data:`STATISTICS` of estimates of a batch's lights: the engine's statistics program,
+    one per batch shape shared by every model.
+
+    Arguments:
+        illuminant: ``(B, 3)`` estimates (:func:`estimate_scenes`).
+        scenes: the :class:`ccjax.scenes.Scenes` batch they estimate.
+        canonical_white: the canonical light's camera RGB.
+        slots: the mapping errors read the first ``slots`` surface slots (static; ``None``: all).
+
+    Returns:
+        :data:`STATISTICS` names -> ``(B,)`` errors, as :func:`scene_errors` gives them.
+    """
+    return _statistics(illuminant, _narrowed(scenes, slots), canonical_white)
 
 
 def applicable(model: AbstractEstimator, errors: dict) -> dict:
@@ -114,7 +144,8 @@ def applicable(model: AbstractEstimator, errors: dict) -> dict:
     return {name: value for name, value in errors.items() if model.estimates_brightness or name not in RGB_VALUED}
 
 
-_group_program = eqx.filter_jit(group_errors)
+_estimate_program = eqx.filter_jit(estimate_scenes)
+_statistics_program = eqx.filter_jit(scene_statistics)
 
 
 class Placement:
@@ -208,8 +239,9 @@ class Stream:
             placed on the devices.
         maker: a key of the program ``make`` runs: streams with equal keys share it (it is
             compiled once, ahead, by making the first chunk of the first of them).
-        shape: a key of the batch's shapes and dtypes: streams with equal keys (and equal
-            ``slots``) share the models' errors programs.
+        shape: a key of the batch's shapes and dtypes within a run: streams with equal keys (and
+            equal ``slots``) are compiled for once (the programs themselves are keyed by the
+            batch's actual shapes and dtypes, across runs).
         positions: indices of the models to run.
         canonical_white: the canonical light's camera RGB (mapping errors).
         slots: the models read the first ``slots`` surface slots of each item (``None``: all), so
@@ -231,30 +263,71 @@ class Stream:
         return -(-self.n_items // self.size)
 
 
-GROUP_SIZE = 8
-"""At most this many models without a size branch share one errors program."""
+@dataclass(frozen=True)
+class _Aval:
+    """An array leaf of a program key: what a compiled program is specialised on."""
+
+    shape: tuple[int, ...]
+    dtype: str
+    weak_type: bool
 
 
-def program_groups(models: Sequence[AbstractEstimator], positions: Sequence[int]) -> list[tuple[int, ...]]:
-    """The models of ``positions`` as the groups that share an errors program (:func:`group_errors`).
+def _signature(tree) -> Hashable:
+    """What ``eqx.filter_jit`` keys a program on: the PyTree structure (with the models' static
+    fields), the non-array leaves, and the arrays' shapes and dtypes (where they are placed is
+    the run's :class:`Placement`, part of the key beside this)."""
+    leaves, treedef = jax.tree.flatten(tree)
 
-    Models without a size branch (:attr:`~ccjax.estimators.base.AbstractEstimator.padding`
-    without budgets: the statistics and correlation families) are cheap to compile apart from the
-    statistics they share, so they go together, up to :data:`GROUP_SIZE` in a group; a model with
-    size branches (the gamut family) is a large program of its own, compiled beside the others.
+    def leaf_key(leaf):
+        if not eqx.is_array(leaf):
+            return leaf
+        return _Aval(tuple(leaf.shape), str(leaf.dtype), bool(getattr(leaf, "weak_type", False)))
+
+    return treedef, tuple(leaf_key(leaf) for leaf in leaves)
+
+
+_PROGRAMS: dict[Hashable, concurrent.futures.Future] = {}
+"""The compiled programs of this process (estimate and statistics), by :func:`_signature` of
+their arguments: a run reuses what any earlier run in the process compiled."""
+
+_PROGRAMS_LOCK = threading.Lock()
+
+
+def _compiled(key: Hashable, build: Callable[[], Callable]) -> Callable:
+    """The program of ``key`` from the process's programs, else built (once: a second thread
+    asking for it meanwhile waits for the first one's)."""
+    with _PROGRAMS_LOCK:
+        future = _PROGRAMS.get(key)
+        owner = future is None
+        if owner:
+            future = _PROGRAMS[key] = concurrent.futures.Future()
+    assert future is not None
+    if owner:
+        try:
+            future.set_result(build())
+        except BaseException as error:
+            with _PROGRAMS_LOCK:
+                del _PROGRAMS[key]  # not kept: a later run tries again
+            future.set_exception(error)
+            raise
+    return future.result()
+
+
+def compile_order(models: Sequence[AbstractEstimator], positions: Sequence[int]) -> list[int | None]:
+    """The order in which a stream's programs are compiled ahead: the estimate programs of the
+    models with size branches first (the gamut family: the largest programs, so that one compile
+    worker starts on them while the other compiles the rest), then the statistics program
+    (``None``), then the other models' estimate programs.
 
     Arguments:
         models: the fitted models.
-        positions: indices into ``models``.
+        positions: indices into ``models`` (the stream's).
 
     Returns:
-        Groups of positions, every position in exactly one: the models with size branches first
-        (the largest programs, so that a compile worker starts on them while the other compiles
-        the rest), then the groups of the others, in order.
+        The positions, every one once, and ``None`` for the statistics program.
     """
-    plain = [position for position in positions if not models[position].padding.budgets]
-    groups = [(position,) for position in positions if models[position].padding.budgets]
-    return groups + [tuple(plain[start : start + GROUP_SIZE]) for start in range(0, len(plain), GROUP_SIZE)]
+    branched = [position for position in positions if models[position].padding.budgets]
+    return [*branched, None, *(position for position in positions if not models[position].padding.budgets)]
 
 
 def run_streams(
@@ -267,12 +340,19 @@ def run_streams(
 ) -> list[dict[int, dict[str, np.ndarray]]]:
     """Every stream's models on every chunk of the stream: per-item errors and statuses.
 
-    Two worker threads trace and compile, in the order they are first needed and each once, the
-    streams' makers and the models' errors programs (one per model and batch shape), while this
-    thread runs those already compiled (XLA compiles and runs without holding the GIL), so
-    compiling overlaps running. The workers see ``jax_enable_x64`` as the caller has it; other
-    per-thread JAX settings (a ``jax.default_device`` context) are not passed on: set those
-    globally. An error raised while compiling reaches the caller as itself.
+    Each model's estimates of a chunk come from its estimate program (:func:`estimate_scenes`,
+    one per model and batch shape) and their errors from the statistics program
+    (:func:`scene_statistics`, one per batch shape, shared by every model). Programs are keyed by
+    what they compute (the model's structure and static fields, the batch's shapes, dtypes and
+    placement, the slots read), never by the other models of the run, and kept for the process:
+    a later run, whatever its list of models, compiles only the programs no run has compiled.
+
+    Two worker threads trace and compile, in the order they are first needed (:func:`compile_order`)
+    and each once, the streams' makers and the programs, while this thread runs those already
+    compiled (XLA compiles and runs without holding the GIL), so compiling overlaps running. The
+    workers see ``jax_enable_x64`` as the caller has it; other per-thread JAX settings (a
+    ``jax.default_device`` context) are not passed on: set those globally. An error raised while
+    compiling reaches the caller as itself.
 
     Arguments:
         models: fitted surface estimators.
@@ -286,23 +366,38 @@ def run_streams(
         :func:`applicable` :func:`scene_errors`).
     """
     x64 = bool(jax.config.read("jax_enable_x64"))
+    sharding = placement.sharding
+    batches: dict[Hashable, Scenes] = {}
 
     def compile_maker(stream: Stream) -> None:
         with jax.enable_x64(x64):  # the caller's setting (a context is per thread)
             stream.make(0)
 
-    def compile_errors(group: tuple[int, ...], stream: Stream):
-        # On one device from host zeros of the batch's shapes (no program builds them), so that it
-        # does not wait for the maker to compile; sharded, from the first chunk (whose layout the
-        # maker decides).
-        with jax.enable_x64(x64):
-            if placement.sharding is None:
+    def example(stream: Stream) -> Scenes:
+        # On one device, host zeros of the batch's shapes (no program builds them), so that the
+        # programs need not wait for the maker; sharded, the first chunk (whose layout the maker
+        # decides). Once per maker: its streams' batches are alike.
+        if stream.maker not in batches:
+            if sharding is None:
                 shapes = jax.eval_shape(lambda: stream.make(0))
-                batch = jax.tree.map(lambda leaf: np.zeros(leaf.shape, leaf.dtype), shapes)
+                batches[stream.maker] = jax.tree.map(lambda leaf: np.zeros(leaf.shape, leaf.dtype), shapes)
             else:
-                batch = stream.make(0)
-            group_models = tuple(models[position] for position in group)
-            return _group_program.lower(group_models, batch, stream.canonical_white, stream.slots).compile()
+                batches[stream.maker] = stream.make(0)
+        return batches[stream.maker]
+
+    def compile_program(position: int | None, stream: Stream):
+        with jax.enable_x64(x64):
+            batch = example(stream)
+            if position is None:
+                illuminant = np.zeros((batch.rgb.shape[0], 3), batch.rgb.dtype)
+                if sharding is not None:
+                    illuminant = placement.place(illuminant)
+                args = (illuminant, batch, stream.canonical_white)
+                key = ("statistics", _signature(args), stream.slots, sharding, x64)
+                return _compiled(key, lambda: _statistics_program.lower(*args, stream.slots).compile())
+            args = (models[position], batch.rgb, batch.mask)
+            key = ("estimate", _signature(args), stream.slots, sharding, x64)
+            return _compiled(key, lambda: _estimate_program.lower(*args, stream.slots, sharding).compile())
 
     results: list[dict[int, dict[str, np.ndarray]]] = []
     bar = tqdm(
@@ -316,30 +411,33 @@ def run_streams(
     try:
         makers: dict[Hashable, concurrent.futures.Future] = {}
         programs: dict[tuple, concurrent.futures.Future] = {}
-        # In the order the streams need them (within a stream, the largest programs first).
-        pending = [(group, stream) for stream in streams for group in program_groups(models, stream.positions)]
         for stream in streams:
             if stream.positions and stream.maker not in makers:
                 makers[stream.maker] = compiler.submit(compile_maker, stream)
-        for group, stream in pending:
-            key = (group, stream.shape, stream.slots)
-            if key not in programs:
-                programs[key] = compiler.submit(compile_errors, group, stream)
+        # In the order the streams need them (within a stream, the largest programs first).
+        for stream in streams:
+            for position in compile_order(models, stream.positions) if stream.positions else ():
+                key = (position, stream.shape, stream.slots)
+                if key not in programs:
+                    programs[key] = compiler.submit(compile_program, position, stream)
         for stream in streams:
             collected: dict[int, list[dict]] = {position: [] for position in stream.positions}
             if stream.positions:
                 # Until its programs are compiled a stream's first chunk waits: say so.
                 bar.set_postfix_str("compiling")
                 makers[stream.maker].result()
-                groups = program_groups(models, stream.positions)
+                statistics = programs[None, stream.shape, stream.slots]
                 for index in range(stream.n_chunks):
                     batch = stream.make(index)
-                    for group in groups:
-                        program = programs[group, stream.shape, stream.slots].result()
-                        group_models = tuple(models[position] for position in group)
-                        errors = placement.fetch(program(group_models, batch, stream.canonical_white, stream.slots))
-                        for row, position in enumerate(group):
-                            collected[position].append({name: value[row] for name, value in errors.items()})
+                    chunk = {}
+                    for position in stream.positions:
+                        estimate = programs[position, stream.shape, stream.slots].result()
+                        model = models[position]
+                        illuminant, ok, status = estimate(model, batch.rgb, batch.mask, stream.slots, sharding)
+                        errors = statistics.result()(illuminant, batch, stream.canonical_white, stream.slots)
+                        chunk[position] = {**errors, "ok": ok, "status": status}
+                    for position, errors in placement.fetch(chunk).items():
+                        collected[position].append(errors)
                     bar.set_postfix_str("", refresh=False)
                     bar.update()
             results.append(
