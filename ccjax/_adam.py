@@ -1,6 +1,7 @@
 """The one Adam loop of every learner (optax): the nets (:mod:`ccjax.estimators.neural._training`),
 ``ccjax train`` (:mod:`ccjax.training._loop`) and learned sharpening (:mod:`ccjax.sharpening._learned`)
-each iterate :func:`adam_step` over their own batches.
+each iterate :func:`adam_step` over their own batches (:func:`optax_step` where the caller
+brings its own optax optimiser).
 
 One optimiser object serves every run: its learning rate is a hyper-parameter held in the state
 (``optax.inject_hyperparams``) and set at each step, so a schedule (the nets' cosine decay) is a
@@ -71,4 +72,31 @@ def adam_step(
     # promotion (the test suite's) would refuse it, so optax runs under JAX's standard rules.
     with jax.numpy_dtype_promotion("standard"):
         updates, state = optimiser().update(grads, state)
+    return eqx.apply_updates(params, updates), state, value
+
+
+def optax_step(
+    loss: Callable[..., jax.Array],
+    params: Any,
+    state: optax.OptState,
+    *args: Any,
+    optimizer: optax.GradientTransformation,
+) -> tuple[Any, optax.OptState, jax.Array]:
+    """One step of a caller's optax ``optimizer`` on ``loss(params, *args)`` (its own rate or
+    schedule): :func:`adam_step` for any optimiser. Its state is ``optimizer.init`` of the array
+    leaves of ``params``.
+
+    Arguments:
+        loss: a scalar function of ``params`` and ``args``.
+        params: the PyTree being optimised.
+        state: the optimiser's state.
+        args: the loss's other arguments.
+        optimizer: the optax gradient transformation.
+
+    Returns:
+        ``(updated params, new state, loss value before the update)``.
+    """
+    value, grads = eqx.filter_value_and_grad(loss)(params, *args)
+    with jax.numpy_dtype_promotion("standard"):  # as in adam_step
+        updates, state = optimizer.update(grads, state, eqx.filter(params, eqx.is_array))
     return eqx.apply_updates(params, updates), state, value

@@ -8,9 +8,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from traces import count_traces, record_traces
 
 from ccjax import sharpening as sh
 from ccjax.camera import Camera
@@ -343,6 +345,32 @@ def test_learning_signal_through_grey_world(small_world):
     angular_grad = gradient(parameters, "angular")
     assert np.all(np.isfinite(mapping_grad)) and float(jnp.linalg.norm(mapping_grad)) > 1e-3
     assert float(jnp.linalg.norm(angular_grad)) < 1e-3 * float(jnp.linalg.norm(mapping_grad))
+
+
+def test_learned_sharpening_compiles_once_per_shape(small_world, caplog):
+    """The training step is compiled once per shape: calls with other step counts and rates trace
+    nothing (the count is the loop's length: a shorter run is the longer one's beginning); an
+    optax optimiser is part of the key (two calls with one object: one more trace), and
+    ``optax.adam(rate)`` takes the steps of the default Adam at that rate."""
+    record_traces(caplog)
+    options = dict(batch_size=3, n_surfaces=3)  # shapes no other test uses: the first call compiles
+    longer = sh.learned_sharpening(small_world, "GW", steps=4, learning_rate=3e-3, **options)
+    shorter = sh.learned_sharpening(small_world, "GW", steps=2, learning_rate=3e-3, **options)
+    faster = sh.learned_sharpening(small_world, "GW", steps=2, learning_rate=3e-2, **options)
+    assert count_traces(caplog, "_sharpening_step") == 1
+    assert shorter.losses == longer.losses[:2]
+    assert faster.losses[0] == longer.losses[0] and faster.losses[1] != longer.losses[1]  # T = I, then the rate
+    adam = optax.adam(3e-3)
+    with_optax = sh.learned_sharpening(small_world, "GW", steps=4, optimizer=adam, **options)
+    sh.learned_sharpening(small_world, "GW", steps=1, optimizer=adam, **options)
+    assert count_traces(caplog, "_sharpening_step") == 2
+    np.testing.assert_allclose(with_optax.losses, longer.losses, rtol=1e-5)
+    np.testing.assert_allclose(with_optax.transform, longer.transform, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(longer.transform, np.eye(3), atol=1e-3)  # it did move
+    with pytest.raises(ValueError, match="learning_rate"):
+        sh.learned_sharpening(small_world, "GW", steps=1, learning_rate=1e-3, optimizer=adam)
+    with pytest.raises(TypeError, match="optimizer"):
+        sh.learned_sharpening(small_world, "GW", steps=1, optimizer=3e-3)  # pyright: ignore[reportArgumentType]
 
 
 @pytest.mark.slow

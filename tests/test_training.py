@@ -2,11 +2,14 @@
 learnable leaves, keeps the best held-out model), fold assignment, cross-validation that never
 trains on the scored fold, model files and ``ccjax train``."""
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from traces import count_traces, record_traces
 
 from ccjax import io, scenes, training
 from ccjax.estimators import registry
@@ -52,9 +55,15 @@ def test_examples_match_the_files(examples, image_set):
     np.testing.assert_allclose(examples.illuminant, np.stack(list(rows.values())), rtol=1e-6)
 
 
-def test_adam_reduces_the_loss_and_touches_only_learnable_leaves(start, examples):
+def test_adam_reduces_the_loss_and_touches_only_learnable_leaves(start, examples, caplog):
+    record_traces(caplog)
     schedule = training.Schedule(epochs=4, batch_size=8, learning_rate=0.05, patience=4, surfaces=None, relight=0.0)
     model, log = training.fit_to_examples(start, examples, schedule, validation=examples, progress=False)
+    # The step is compiled once (at most: an earlier test may have compiled it) for every step of
+    # the fit and for a fit at another rate, epochs and seed (values, not the step's program).
+    other = dataclasses.replace(schedule, epochs=1, learning_rate=0.01, seed=1)
+    training.fit_to_examples(start, examples, other, validation=examples, progress=False)
+    assert count_traces(caplog, "_step") <= 1
     # Fixed data (no subsets, no relighting), validation = training: gradient descent must lower it.
     assert log.train_loss[-1] < log.train_loss[0]
     assert min(log.heldout_median) <= log.initial_median

@@ -5,6 +5,7 @@ estimators, ``model(image (H, W, 3), mask (H, W))`` for image estimators; batchi
 :func:`require_kind`."""
 
 import abc
+import dataclasses
 import enum
 import typing
 from dataclasses import dataclass
@@ -15,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from equinox import AbstractClassVar, AbstractVar
+from jax import lax
 from jaxtyping import Array, Bool, Float, Int
 
 from ccjax import limits
@@ -121,11 +123,22 @@ NO_PADDING_BRANCH = Padding()
 """The padding rule of a model whose kernel has no branch on the scene's size."""
 
 
+def _weak(leaf) -> bool:
+    return isinstance(leaf, jax.Array) and jax.typeof(leaf).weak_type
+
+
+def _strong(leaf):
+    # convert_element_type to the leaf's own dtype drops the weak flag (traced leaves too).
+    return lax.convert_element_type(leaf, leaf.dtype) if _weak(leaf) else leaf
+
+
 class AbstractEstimator(eqx.Module):
     """A fitted estimator: configuration that changes the trace is static, what can
     be learned is an array, so every model is a valid ``jax.jit`` / ``jax.vmap`` / ``jax.grad``
     argument. Concrete estimators derive from :class:`AbstractSurfaceEstimator` or
-    :class:`AbstractImageEstimator` and are final.
+    :class:`AbstractImageEstimator` and are final. Every array leaf is strong-typed (a weak-typed
+    one, from a Python number, is made strong at construction, same dtype), so a training step
+    compiled for the model is not traced again after the optimiser's first update.
 
     What the execution layer needs to know about a model is declared here as abstract attributes
     (equinox's abstract-variable pattern: each final class states them, as a class constant, a
@@ -168,6 +181,19 @@ class AbstractEstimator(eqx.Module):
         default_preprocessing: AbstractVar[str]
         pools_pixels: AbstractClassVar[bool]
         padding: AbstractVar[Padding]
+
+    def __check_init__(self):
+        # Every array leaf strong-typed, however the model was built: a weak-typed leaf (a Python
+        # number through jnp.asarray / jnp.full, or an eqx converter) changes type at the first
+        # optimiser update (weak + strong update = strong), so jit traces a training step again.
+        # The value and dtype are kept; only JAX's weak flag goes. Runs after every subclass's
+        # own checks (equinox calls each class's __check_init__, the subclass's first).
+        for field in dataclasses.fields(self):
+            if field.metadata.get("static", False):
+                continue
+            value = getattr(self, field.name)
+            if any(_weak(leaf) for leaf in jax.tree_util.tree_leaves(value)):
+                object.__setattr__(self, field.name, jax.tree_util.tree_map(_strong, value))
 
     @abc.abstractmethod
     def block_size(self, backend: str) -> int | None:

@@ -175,7 +175,10 @@ def fit_ave_illum(world: World) -> Constant:
 
 
 def fit_gw(world: World) -> GreyWorld:
-    return GreyWorld(scale=jnp.full(3, 2.0), fallback=average_illuminant(world))
+    fallback = average_illuminant(world)
+    # The world's dtype, strong-typed: jnp.full(3, 2.0) alone is a weak-typed array, whose type
+    # changes at a training step's first update (a second trace of the step).
+    return GreyWorld(scale=jnp.full(3, 2.0, fallback.dtype), fallback=fallback)
 
 
 def fit_db_gw(world: World) -> GreyWorld:

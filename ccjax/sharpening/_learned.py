@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
@@ -17,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
-from ccjax._adam import adam_init, adam_step
+from ccjax._adam import adam_init, adam_step, optax_step
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.losses import angular_errors
 from ccjax.precision import matmul
@@ -27,7 +28,12 @@ from ccjax.sharpening._transforms import THESIS_SCALE, database_responses, mappi
 from ccjax.sharpening._wrapper import sharpened
 from ccjax.world import World
 
+if TYPE_CHECKING:
+    import optax
+
 LOSSES = ("mapping", "angular")
+DEFAULT_LEARNING_RATE = 3e-3
+"""Adam's rate when :func:`learned_sharpening` is given no optimiser."""
 
 
 @dataclass
@@ -94,6 +100,49 @@ def scene_losses(
     return jax.vmap(one)(lights, surfaces)
 
 
+class _Problem(eqx.Module):
+    """What a training step learns from: its static fields (and the arrays' shapes) key the
+    compiled step, its arrays are arguments (so a second call with the same shapes reuses it)."""
+
+    estimator: str = eqx.field(static=True)
+    loss: str = eqx.field(static=True)
+    batch_size: int = eqx.field(static=True)
+    n_surfaces: int = eqx.field(static=True)
+    world: World
+    train: Float[Array, "I S 3"]
+    whites: Float[Array, "I 3"]
+    plain: AbstractEstimator
+
+
+@eqx.filter_jit
+def _sharpening_step(parameters, state, key, index, learning_rate, problem: _Problem, optimizer):
+    """One training step (module level: compiled once per problem shape, optimiser and loss; the
+    step index and learning rate are traced values)."""
+    n_lights, n_reflectances = problem.train.shape[:2]
+    step_key = jax.random.fold_in(key, index)
+    draws = draw_scenes(
+        sweep_keys(step_key, problem.n_surfaces, 0, problem.batch_size), n_lights, n_reflectances, problem.n_surfaces
+    )
+
+    def batch_loss(p):
+        errors = scene_losses(
+            p,
+            problem.estimator,
+            problem.loss,
+            problem.world,
+            problem.train,
+            problem.whites,
+            draws.light,
+            draws.surfaces,
+            problem.plain,
+        )
+        return jnp.mean(errors**2)
+
+    if optimizer is None:
+        return adam_step(batch_loss, parameters, state, learning_rate=learning_rate)
+    return optax_step(batch_loss, parameters, state, optimizer=optimizer)
+
+
 def learned_sharpening(
     world: World,
     estimator: str = "GW",
@@ -102,7 +151,8 @@ def learned_sharpening(
     steps: int = 300,
     batch_size: int = 128,
     n_surfaces: int = 8,
-    learning_rate: float = 3e-3,
+    learning_rate: float | None = None,
+    optimizer: optax.GradientTransformation | None = None,
     key: PRNGKeyArray | None = None,
 ) -> LearnedSharpening:
     """Learn ``T`` by gradient descent through a differentiable estimator (beyond Barnard 1999 ch. 5).
@@ -113,13 +163,35 @@ def learned_sharpening(
     (``loss="mapping"``, the one to use for GW, whose chromaticity does not depend on ``T``) or of
     the angular error (``loss="angular"``, for non-linear estimators such as
     ``soft-RETINEX-t0.01`` or ``shades-of-grey-p6``). ``T`` starts at the identity and stays on
-    ``|T|_F^2 = 3`` (the new method's norm constraint, §5.3); Adam (optax).
+    ``|T|_F^2 = 3`` (the new method's norm constraint, §5.3); Adam (optax) at ``learning_rate``,
+    or the caller's optax ``optimizer`` (a schedule goes inside it).
+
+    The training step is compiled once per estimator, loss, batch shape, world shape and optimiser
+    object: the step count and the learning rate are values, so a second call with the same shapes
+    (any ``steps``, any ``learning_rate``, the same ``optimizer`` object) compiles nothing.
+
+    Example::
+
+        import optax
+        from ccjax import World, sharpening
+
+        world = World.default()
+        schedule = optax.cosine_decay_schedule(1e-2, decay_steps=20)
+        learned = sharpening.learned_sharpening(
+            world, "GW", steps=20, batch_size=16, optimizer=optax.adam(schedule)
+        )
+        print(learned.transform.shape, len(learned.losses))  # (3, 3) 20
 
     Arguments:
         world: training illuminants, reflectances, canonical light.
         estimator: a registry label whose fit is plain JAX (GW, DB-GW, shades of grey, soft RETINEX).
         loss: ``"mapping"`` or ``"angular"``.
-        steps, batch_size, n_surfaces, learning_rate: the schedule.
+        steps, batch_size, n_surfaces: the schedule (steps, scenes per step, surfaces per scene).
+        learning_rate: Adam's rate (default ``3e-3``) when no ``optimizer`` is given; give one
+            or the other.
+        optimizer: an optax gradient transformation (e.g. ``optax.adam(schedule)``) used instead
+            of Adam at ``learning_rate``; it is part of the compiled step's key, so reuse the same
+            object across calls to reuse the compilation.
         key: PRNG key (default ``jax.random.key(1)``).
 
     Returns:
@@ -129,31 +201,33 @@ def learned_sharpening(
 
     if loss not in LOSSES:
         raise ValueError(f"loss: expected 'mapping' or 'angular', got {loss!r}")
-    if not isinstance(steps, int) or steps < 1:
-        raise ValueError(f"steps: expected a positive integer, got {steps!r}")
+    for name, value in (("steps", steps), ("batch_size", batch_size), ("n_surfaces", n_surfaces)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name}: expected a positive integer, got {value!r}")
+    if optimizer is not None and learning_rate is not None:
+        raise ValueError("learning_rate: the optimizer sets its own rate (or schedule); give one or the other")
+    if optimizer is not None and not (
+        callable(getattr(optimizer, "init", None)) and callable(getattr(optimizer, "update", None))
+    ):
+        raise TypeError(f"optimizer: expected an optax GradientTransformation, got {type(optimizer).__name__}")
+    rate = DEFAULT_LEARNING_RATE if learning_rate is None else learning_rate
+    if not (isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0):
+        raise ValueError(f"learning_rate: expected a positive number, got {learning_rate!r}")
     key = jax.random.key(1) if key is None else key
     train = database_responses(world, world.train_illuminants)
-    whites = world.train_whites
-    plain = registry.fit(estimator, world)
-    n_lights, n_reflectances = train.shape[:2]
-
-    @eqx.filter_jit
-    def step(parameters, state, step_key):
-        draws = draw_scenes(sweep_keys(step_key, n_surfaces, 0, batch_size), n_lights, n_reflectances, n_surfaces)
-
-        def batch_loss(p):
-            errors = scene_losses(p, estimator, loss, world, train, whites, draws.light, draws.surfaces, plain)
-            return jnp.mean(errors**2)
-
-        return adam_step(batch_loss, parameters, state, learning_rate=learning_rate)
-
+    problem = _Problem(
+        estimator, loss, batch_size, n_surfaces, world, train, world.train_whites, registry.fit(estimator, world)
+    )
     parameters = jnp.eye(3, dtype=train.dtype)
-    state = adam_init(parameters)
-    losses = []
+    state = adam_init(parameters) if optimizer is None else optimizer.init(parameters)
+    # A traced value of the parameters' dtype: every rate shares the one compilation.
+    rate = jnp.asarray(rate, train.dtype)
+    values = []
     start = time.perf_counter()
-    for index in range(steps):
-        parameters, state, value = step(parameters, state, jax.random.fold_in(key, index))
-        losses.append(float(jnp.sqrt(value)))
+    for index in range(steps):  # dispatched asynchronously: no host round trip per step
+        parameters, state, value = _sharpening_step(parameters, state, key, jnp.uint32(index), rate, problem, optimizer)
+        values.append(value)
+    losses = np.sqrt(np.asarray(jnp.stack(values))).tolist()
     t = np.asarray(on_sphere(jnp.asarray(parameters)), dtype=np.float64)
     return LearnedSharpening(
         transform=t / np.linalg.norm(t, axis=0, keepdims=True),

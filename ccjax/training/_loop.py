@@ -190,23 +190,34 @@ def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return np.sort(order[held:]), np.sort(order[:held])
 
 
+@dataclass(frozen=True)
+class _StepRule:
+    """The part of a :class:`Schedule` that shapes the step's program (its compilation key); the
+    rate is a traced argument, and epochs, patience, seed, ... belong to the Python loop, so fits
+    that differ only in those share one compilation."""
+
+    surfaces: int | None
+    relighting: bool
+    loss: str
+
+
 @eqx.filter_jit
-def _step(params, static, opt_state, x, mask, illuminant, targets, key, schedule: Schedule):
+def _step(params, static, opt_state, x, mask, illuminant, targets, key, rule: _StepRule, rate, relight):
     key_subset, key_light, key_which = jax.random.split(key, 3)
-    if schedule.surfaces is not None and x.ndim == 3 and x.shape[1] > schedule.surfaces:
-        x, mask = subsample(key_subset, x, mask, schedule.surfaces)
-    if schedule.relight > 0:
+    if rule.surfaces is not None and x.ndim == 3 and x.shape[1] > rule.surfaces:
+        x, mask = subsample(key_subset, x, mask, rule.surfaces)
+    if rule.relighting:
         relit, new = augment.von_kries_relight(key_light, x, illuminant, targets, mask)
-        chosen = jax.random.uniform(key_which, illuminant.shape[:1]) < schedule.relight
+        chosen = jax.random.uniform(key_which, illuminant.shape[:1]) < relight
         x = jnp.where(chosen.reshape((-1,) + (1,) * (x.ndim - 1)), relit, x)
         illuminant = jnp.where(chosen[:, None], new, illuminant)
 
     def loss_of(params):
         model = eqx.combine(params, static)
         estimate = jax.vmap(model)(x, mask).illuminant
-        return losses.illuminant_loss(schedule.loss, estimate, illuminant)
+        return losses.illuminant_loss(rule.loss, estimate, illuminant)
 
-    params, opt_state, loss = adam_step(loss_of, params, opt_state, learning_rate=schedule.learning_rate)
+    params, opt_state, loss = adam_step(loss_of, params, opt_state, learning_rate=rate)
     model = constrain(eqx.combine(params, static))
     params, _ = eqx.partition(model, learnable(model))
     return params, opt_state, loss
@@ -256,13 +267,16 @@ def fit_to_examples(
     params, static = eqx.partition(model, spec)
     opt_state = adam_init(params)
     targets = examples.illuminant
+    rule = _StepRule(schedule.surfaces, schedule.relight > 0, schedule.loss)
+    # Traced values (not part of the compilation key), in the dtypes the step used as constants.
+    rate, relight = jnp.asarray(schedule.learning_rate, jnp.float32), jnp.asarray(schedule.relight, jnp.float32)
     if mesh is not None:
         devices = mesh.devices.size
         if batch % devices:
             raise ValueError(
                 f"schedule.batch_size: {batch} examples per step do not split over the mesh's {devices} devices"
             )
-        params, opt_state, targets = hosts.replicate((params, opt_state, targets), mesh)
+        params, opt_state, targets, rate, relight = hosts.replicate((params, opt_state, targets, rate, relight), mesh)
         rows = hosts.process_share(batch)  # this process's block of every batch
     key = jax.random.key(schedule.seed)
     rng = np.random.default_rng(schedule.seed)
@@ -287,7 +301,9 @@ def fit_to_examples(
             if mesh is not None:
                 x, mask, illuminant = hosts.shard_items((x[rows], mask[rows], illuminant[rows]), mesh)
                 key_step = hosts.replicate(key_step, mesh)
-            params, opt_state, loss = _step(params, static, opt_state, x, mask, illuminant, targets, key_step, schedule)
+            params, opt_state, loss = _step(
+                params, static, opt_state, x, mask, illuminant, targets, key_step, rule, rate, relight
+            )
             epoch_losses.append(float(loss))
         # Trained on a mesh, the parameters come back as this process's copy (a model to use anywhere).
         current = eqx.combine(params if mesh is None else jax.tree.map(jnp.asarray, hosts.global_value(params)), static)
