@@ -9,7 +9,7 @@ import numpy as np
 
 from ccjax._cache import enable_compilation_cache
 from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, validate_input
-from ccjax.estimators.base import validate_image
+from ccjax.estimators.inputs import validate_image
 from ccjax.io.reading import CLIP_FRACTION, LinearImage
 from ccjax.preprocessing import estimate_image, estimate_pixels, resolve, usable_pixels
 from ccjax.runs import store

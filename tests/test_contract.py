@@ -26,8 +26,8 @@ from ccjax.estimators.base import (
     Estimate,
     Status,
     estimate_batch,
-    require_kind,
 )
+from ccjax.estimators.inputs import require_kind
 from ccjax.runs import store
 from ccjax.world import World
 

@@ -11,9 +11,8 @@ from ccjax.estimators.base import (
     Estimate,
     Status,
     estimate_batch,
-    require_kind,
-    validate_input,
 )
+from ccjax.estimators.inputs import require_kind, validate_input
 from ccjax.estimators.registry import Entry, available, fit, model_classes
 
 __all__ = [

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import jax
 
-from ccjax.estimators import base, registry
+from ccjax.estimators import inputs, registry
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.experiments.results import SweepResult
 from ccjax.runs import store
@@ -85,7 +85,7 @@ def require_surface_estimator(label: str, model: AbstractEstimator) -> None:
     Raises:
         ValueError: naming ``label`` when ``model`` is an image estimator.
     """
-    base.require_kind(model, "surfaces", f"methods: {label!r}")
+    inputs.require_kind(model, "surfaces", f"methods: {label!r}")
 
 
 def resolve_methods(

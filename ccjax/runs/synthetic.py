@@ -25,7 +25,8 @@ from jaxtyping import Array, ArrayLike, Float, Int
 from ccjax import limits, scenes
 from ccjax._cache import code_fingerprint, content_key
 from ccjax._entries import Expect, read_arrays, write_arrays
-from ccjax.estimators.base import AbstractEstimator, Padding, Status, require_kind
+from ccjax.estimators.base import AbstractEstimator, Padding, Status
+from ccjax.estimators.inputs import require_kind
 from ccjax.runs.engine import STATISTICS, Placement, Stream, applicable, chunking, run_streams
 from ccjax.scenes import SceneOptions, Scenes, SceneTables, require_count
 from ccjax.world import World
