@@ -119,10 +119,10 @@ def test_a_relight_keeps_clipping_shading_and_scale(default_world, tables):
 def test_relight_takes_true_as_sample_mondrians_does(default_world, tables):
     """Issue 56, item 2: ``True`` (the thesis recipe) for every option ``sample_mondrians`` takes it for."""
     images = draw(default_world)
-    relit = relight_mondrians(
-        jax.random.key(4), tables, images, specular=True, noise=True, metallic=True, fluorescent=True
-    )
-    assert relit.options == SceneOptions(Specular(), ShotNoise(), None, Metallic(), Fluorescent())
+    relit = relight_mondrians(jax.random.key(4), tables, images, specular=True, noise=True)
+    assert relit.options == SceneOptions(Specular(), ShotNoise())
+    relit = relight_mondrians(jax.random.key(4), tables, images, metallic=True, fluorescent=True)
+    assert relit.options == SceneOptions(metallic=Metallic(), fluorescent=Fluorescent())
     assert np.isfinite(np.asarray(relit.image)).all()
 
 
