@@ -53,7 +53,7 @@ class Camera(eqx.Module):
             name: a label for printing.
 
         Returns:
-            The camera (float32 sensors).
+            The camera (float32 sensors; float64 when built under ``jax_enable_x64``).
         """
         sensors = as_spectra(sensors, kind="sensor", rows=False)
         if sensors.shape != (N_WAVELENGTHS, 3):
@@ -64,7 +64,9 @@ class Camera(eqx.Module):
             raise ValueError("sensors: contains negative sensitivities")
         if np.any(sensors.sum(axis=0) <= 0):
             raise ValueError("sensors: a channel has no sensitivity anywhere")
-        return cls(sensors=jax.device_put(np.asarray(sensors, np.float32)), name=name)
+        # JAX's float: float32, or float64 under jax_enable_x64 (cast on the host, then device_put).
+        width = jax.dtypes.canonicalize_dtype(np.float64)
+        return cls(sensors=jax.device_put(np.asarray(sensors, width)), name=name)
 
     @classmethod
     def from_colour(cls, sensitivities, name: str | None = None) -> Camera:

@@ -112,6 +112,12 @@ def build_illuminant_set(
 class World(eqx.Module):
     """A synthetic world (Barnard 1999 §4.4): everything a scene or a fitted estimator needs.
 
+    Its arrays are JAX's float at construction: float32, or float64 when built (by
+    :meth:`from_sources`, :meth:`default`, :meth:`barnard1999`) under ``jax_enable_x64``; then
+    its responses, the scenes drawn from it and the estimates on them are float64 too, and the
+    same key draws the same scenes as in float32 (the random numbers are drawn in float32 and
+    cast), so a float64 re-check sees the same data to float32 rounding.
+
     Attributes:
         reflectances: ``(S, 101)`` surface reflectances.
         train_illuminants: ``(I, 101)`` training illuminants (fits, AVE-ILLUM, constraints).
@@ -152,7 +158,8 @@ class World(eqx.Module):
 
         The image formation of Barnard 1999 §4.2 (eq. 4.1, discretised as in §2.2): surface ``s``
         under light ``E`` gives ``rho_k = sum_lambda E(lambda) S_s(lambda) R_k(lambda)``, computed as
-        ``(reflectances * E) @ sensors``, in float32 (float64 under ``jax_enable_x64``).
+        ``(reflectances * E) @ sensors``, in the world's dtype: float32, or float64 for a world
+        built under ``jax_enable_x64`` (:meth:`from_sources`, :meth:`default`).
 
         Arguments:
             illuminants: ``(..., 101)`` spectra, e.g. ``world.train_illuminants`` ``(I, 101)`` or
@@ -211,13 +218,17 @@ class World(eqx.Module):
         sensors = np.asarray(camera.sensors, dtype=np.float64)
         train = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TRAIN_CELL, seed=seed)
         test = build_illuminant_set(sources, sensors, n_priority=n_priority, cell=TEST_CELL, seed=seed + 1)
-        # Cast on the host and device_put: jnp.asarray compiles a small program per shape (start-up time).
-        as32 = lambda x: jax.device_put(np.asarray(x, np.float32))
+        # JAX's float (float32; float64 under jax_enable_x64), cast on the host and device_put:
+        # jnp.asarray compiles a small program per shape (start-up time).
+        width = jax.dtypes.canonicalize_dtype(np.float64)
+        put = lambda x: jax.device_put(np.asarray(x, width))
+        if camera.sensors.dtype != width:
+            camera = eqx.tree_at(lambda c: c.sensors, camera, put(camera.sensors))
         return cls(
-            reflectances=as32(reflectances),
-            train_illuminants=as32(train.spectra),
-            test_illuminants=as32(test.spectra),
-            canonical=as32(normalise_illuminants(canonical, sensors)[0]),
+            reflectances=put(reflectances),
+            train_illuminants=put(train.spectra),
+            test_illuminants=put(test.spectra),
+            canonical=put(normalise_illuminants(canonical, sensors)[0]),
             camera=camera,
             name=name,
         )

@@ -75,6 +75,8 @@ def world(
         parts, build = (kind, name, seed), lambda: World.default(name, seed=seed)
     else:
         raise ValueError(f"world: expected 'default' or 'barnard1999', got {kind!r}")
+    # float32, or float64 under x64: a world is built (and stored) in JAX's float of the moment.
+    parts = (*parts, jax.dtypes.canonicalize_dtype(np.float64).name)
     folder = cache_directory()
     memo = (str(folder), *parts)
     if memo in _WORLDS:

@@ -182,6 +182,7 @@ def _sample_padded(keys, tables, n_surfaces, slots, options) -> Scenes:
         mask=jnp.pad(batch.mask, ((0, 0), (0, pad))),
         illuminant=batch.illuminant,
         canonical_rgb=jnp.pad(batch.canonical_rgb, ((0, 0), (0, pad), (0, 0))),
+        light=batch.light,
     )
 
 

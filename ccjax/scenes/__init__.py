@@ -31,7 +31,7 @@ from ccjax.scenes._surfaces import (
     scene_keys,
     sweep_keys,
 )
-from ccjax.scenes._tables import RadianceModel, SceneTables
+from ccjax.scenes._tables import RadianceModel, SceneTables, require_tables
 
 __all__ = [
     "Fluorescent",
@@ -52,6 +52,7 @@ __all__ = [
     "mondrian_layout",
     "render_mondrian",
     "require_count",
+    "require_tables",
     "sample",
     "sample_batch",
     "sample_batch_slots",

@@ -19,9 +19,11 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
+from ccjax.scenes import _draws as draws_
 from ccjax.scenes._options import (
     Fluorescent,
     Metallic,
+    SceneOptions,
     ShotNoise,
     Specular,
     require_count,
@@ -51,6 +53,13 @@ class MondrianImages(eqx.Module):
             fluorescent).
         fluorescent: ``(B, P)`` index into the fluorescent surfaces, -1 for an ordinary patch
             (``None`` without the fluorescent option).
+        light: ``(B,)`` int32 index of each image's light among the tables' lights (the world's
+            test illuminants, or its training ones with ``lights="train"``); ``None`` where unknown.
+        shading: the range of the per-patch shading the images were rendered with (static).
+        options: the :class:`SceneOptions` they were rendered with: highlights, noise, clipping,
+            metallic highlights, fluorescent surfaces (static), which
+            :func:`ccjax.augment.relight_mondrians` renders again unless told otherwise.
+        normalise: whether each image was scaled so its brightest value is 1 (static).
     """
 
     image: Float[Array, "*batch H W 3"]
@@ -58,6 +67,10 @@ class MondrianImages(eqx.Module):
     labels: Int[Array, "*batch H W"]
     surfaces: Int[Array, "*batch P"]
     fluorescent: Int[Array, "*batch P"] | None = None
+    light: Int[Array, "*batch"] | None = None
+    shading: tuple[float, float] = eqx.field(static=True, default=(0.3, 1.0))
+    options: SceneOptions = eqx.field(static=True, default=SceneOptions())
+    normalise: bool = eqx.field(static=True, default=True)
 
 
 def _row_patch_counts(n_patches: int) -> list[int]:
@@ -68,7 +81,7 @@ def _row_patch_counts(n_patches: int) -> list[int]:
 def _proportions(key: PRNGKeyArray, count: int) -> Float[Array, " N"]:
     # Shares 0.25 + U(0, 1), normalised: every patch visible, sizes differ by up to a factor 5
     # (a Dirichlet draw would do too, but its gamma sampler is slow to compile).
-    shares = 0.25 + jax.random.uniform(key, (count,))
+    shares = 0.25 + draws_.uniform(key, (count,))
     return shares / jnp.sum(shares)
 
 
@@ -86,8 +99,9 @@ def mondrian_layout(key: PRNGKeyArray, height: int, width: int, n_patches: int) 
     """
     counts = _row_patch_counts(n_patches)
     key_rows, *key_cols = jax.random.split(key, len(counts) + 1)
-    y = (jnp.arange(height, dtype=float) + 0.5) / height
-    x = (jnp.arange(width, dtype=float) + 0.5) / width
+    # float32 under x64 too: the same layout whatever the precision.
+    y = (jnp.arange(height, dtype=jnp.float32) + 0.5) / height
+    x = (jnp.arange(width, dtype=jnp.float32) + 0.5) / width
     row_edges = jnp.cumsum(_proportions(key_rows, len(counts)))[:-1]
     row = jnp.sum(y[:, None] >= row_edges[None, :], axis=1)  # (H,)
     labels = jnp.zeros((height, width), jnp.int32)
@@ -154,12 +168,12 @@ def render_mondrian(
     """
     n_patches = patch_rgb.shape[0]
     key_shade, key_spec, key_amount, key_noise = jax.random.split(key, 4)
-    # Draws in the patches' dtype (float32 tables under jax_enable_x64 must not meet float64 draws).
-    shade = jax.random.uniform(key_shade, (n_patches,), patch_rgb.dtype, minval=shading[0], maxval=shading[1])
+    # Drawn in float32 and cast to the patches' dtype (ccjax.scenes._draws).
+    shade = draws_.uniform(key_shade, (n_patches,), patch_rgb.dtype, shading[0], shading[1])
     image = (shade[:, None] * patch_rgb)[labels]
     if specular is not None:
-        is_specular = jax.random.uniform(key_spec, (n_patches,)) < specular.probability
-        draw = jax.random.uniform(key_amount, (n_patches,), patch_rgb.dtype)
+        is_specular = draws_.uniform(key_spec, (n_patches,)) < specular.probability
+        draw = draws_.uniform(key_amount, (n_patches,), patch_rgb.dtype)
         amount = jnp.where(is_specular, draw * specular.max_amount, 0.0) * shade
         blob = _highlight_blobs(labels, n_patches, image.dtype)
         image = image + (amount[labels] * blob)[..., None] * white
@@ -167,9 +181,9 @@ def render_mondrian(
         if metal_rgb is None:
             raise ValueError("metal_rgb: needed with metallic (the metals' RGBs under the image's light)")
         key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
-        is_metal = jax.random.uniform(key_which, (n_patches,)) < metallic.probability
-        metal = jax.random.randint(key_metal, (n_patches,), 0, metal_rgb.shape[0])
-        strength = jax.random.uniform(key_strength, (n_patches,), patch_rgb.dtype) * metallic.max_amount
+        is_metal = draws_.uniform(key_which, (n_patches,)) < metallic.probability
+        metal = draws_.randint(key_metal, (n_patches,), metal_rgb.shape[0])
+        strength = draws_.uniform(key_strength, (n_patches,), patch_rgb.dtype) * metallic.max_amount
         strength = jnp.where(is_metal, strength, 0.0) * shade
         blob = _highlight_blobs(labels, n_patches, image.dtype)
         image = image + (strength[labels] * blob)[..., None] * metal_rgb[metal][labels]
@@ -178,7 +192,7 @@ def render_mondrian(
         image, white = image * scale, white * scale
     if noise is not None:
         sigma = jnp.sqrt(noise.a * image + noise.b)
-        image = jnp.maximum(image + sigma * jax.random.normal(key_noise, image.shape, image.dtype), 0.0)
+        image = jnp.maximum(image + sigma * draws_.normal(key_noise, image.shape, image.dtype), 0.0)
         if normalise:
             scale = 1.0 / jnp.maximum(jnp.max(image), 1e-12)
             image, white = image * scale, white * scale
@@ -235,7 +249,7 @@ def mondrian_batch(
 
     def one(key):
         key_light, key_surf, key_layout, key_render = jax.random.split(key, 4)
-        light = jax.random.randint(key_light, (), 0, tables.surface_rgb.shape[0])
+        light = draws_.randint(key_light, (), tables.surface_rgb.shape[0])
         surfaces = draw_without_replacement(key_surf, tables.surface_rgb.shape[1], n_patches)
         labels = mondrian_layout(key_layout, height, width, n_patches)
         patch_rgb = tables.surface_rgb[light, surfaces]
@@ -243,8 +257,8 @@ def mondrian_batch(
         if fluorescent is not None:
             assert tables.fluorescent_rgb is not None
             key_which, key_identity = jax.random.split(jax.random.fold_in(key, FLUORESCENT_STREAM))
-            is_fluorescent = jax.random.uniform(key_which, (n_patches,)) < fluorescent.probability
-            drawn = jax.random.randint(key_identity, (n_patches,), 0, tables.fluorescent_rgb.shape[1])
+            is_fluorescent = draws_.uniform(key_which, (n_patches,)) < fluorescent.probability
+            drawn = draws_.randint(key_identity, (n_patches,), tables.fluorescent_rgb.shape[1])
             patch_rgb = jnp.where(is_fluorescent[:, None], tables.fluorescent_rgb[light, drawn], patch_rgb)
             identity = jnp.where(is_fluorescent, drawn, -1)
         image, white = render_mondrian(
@@ -260,7 +274,17 @@ def mondrian_batch(
             metallic=metallic,
             metal_rgb=None if tables.metal_rgb is None else tables.metal_rgb[light],
         )
-        return MondrianImages(image=image, illuminant=white, labels=labels, surfaces=surfaces, fluorescent=identity)
+        return MondrianImages(
+            image=image,
+            illuminant=white,
+            labels=labels,
+            surfaces=surfaces,
+            fluorescent=identity,
+            light=light,
+            shading=shading,
+            options=SceneOptions(specular, noise, clip, metallic, fluorescent),
+            normalise=normalise,
+        )
 
     return jax.vmap(one)(keys)
 
@@ -282,6 +306,7 @@ def sample_mondrians(
     fluorescent: Fluorescent | bool | None = None,
     metals: Float[ArrayLike, "M 101"] | None = None,
     fluorescent_surfaces: RadianceModel | None = None,
+    lights: str = "test",
 ) -> MondrianImages:
     """Draw synthetic Mondrian images rendered from the world's spectra.
 
@@ -305,9 +330,24 @@ def sample_mondrians(
             :func:`ccjax.materials.scene_metal_spectra`).
         fluorescent_surfaces: the fluorescent :class:`RadianceModel` (default: the nine synthetic
             surfaces' physical model).
+        lights: ``"test"`` (the world's test illuminants) or ``"train"`` (its training ones).
 
     Returns:
-        :class:`MondrianImages`.
+        :class:`MondrianImages`, carrying the options they were drawn with.
+
+    Example:
+        Highlighted images under the training lights; a relight keeps the highlights:
+
+        >>> import jax, ccjax
+        >>> from ccjax.scenes import SceneTables, sample_mondrians
+        >>> from ccjax.augment import relight_mondrians
+        >>> world = ccjax.World.default()
+        >>> images = sample_mondrians(jax.random.key(0), world, 2, height=32, width=32, specular=True, lights="train")
+        >>> images.options.specular
+        Specular(probability=0.25, max_amount=2.0)
+        >>> relit = relight_mondrians(jax.random.key(1), SceneTables.from_world(world, lights="train"), images)
+        >>> relit.options == images.options
+        True
     """
     n_reflectances = int(world.reflectances.shape[0])
     n_images = require_count(n_images, "n_images", 1)
@@ -323,6 +363,7 @@ def sample_mondrians(
         world,
         metals=(True if metals is None else metals) if metallic is not None else None,
         fluorescent=default_fluorescent(fluorescent_surfaces) if fluorescent is not None else None,
+        lights=lights,
     )
     keys = scene_keys(key, 0, n_images)
     return mondrian_batch(

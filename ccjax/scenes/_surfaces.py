@@ -33,6 +33,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int, Integer, Key, PRNGKeyArray, UInt32
 
 from ccjax import limits
+from ccjax.scenes import _draws as draws_
 from ccjax.scenes._options import (
     Fluorescent,
     Metallic,
@@ -63,12 +64,24 @@ class Scenes(eqx.Module):
         mask: ``(B, P)`` True where the surface is valid (False: clipped or padding).
         illuminant: ``(B, 3)`` camera RGB of a perfect white under the scene light (ground truth).
         canonical_rgb: ``(B, P, 3)`` the same surfaces under the canonical light (mapping errors).
+        light: ``(B,)`` int32 index of each scene's light among the lights it was drawn from
+            (``tables.lights``: the world's test illuminants, or its training ones with
+            ``lights="train"``), e.g. to apply per-light sharpening; ``None`` where unknown
+            (scenes built by hand).
+
+    Example:
+        >>> import jax, ccjax, numpy as np
+        >>> world = ccjax.World.default()
+        >>> scenes = ccjax.sample(jax.random.key(0), world, 4, 8)
+        >>> np.allclose(scenes.illuminant, world.test_whites[scenes.light])
+        True
     """
 
     rgb: Float[Array, "*batch P 3"]
     mask: Bool[Array, "*batch P"]
     illuminant: Float[Array, "*batch 3"]
     canonical_rgb: Float[Array, "*batch P 3"]
+    light: Int[Array, "*batch"] | None = None
 
 
 def draw_without_replacement(
@@ -101,7 +114,7 @@ def draw_without_replacement(
 def _floyd(key: PRNGKeyArray, n_population: int, n_draws, slots: int) -> Int[Array, " P"]:
     # Floyd's algorithm: step i draws t in [0, n - P + i]; a repeat is replaced by n - P + i.
     ceilings = n_population - n_draws + jnp.arange(slots, dtype=jnp.int32)
-    uniform = jax.random.uniform(key, (slots,))
+    uniform = draws_.uniform(key, (slots,))  # float32 under x64 too: the same surfaces
     draws = jnp.floor(uniform * (ceilings + 1).astype(uniform.dtype)).astype(jnp.int32)
     draws = jnp.minimum(draws, ceilings)
 
@@ -115,7 +128,7 @@ def _floyd(key: PRNGKeyArray, n_population: int, n_draws, slots: int) -> Int[Arr
 def _top_k(key: PRNGKeyArray, n_population: int, n_draws: int) -> Int[Array, " P"]:
     # Gumbel top-k: the P largest of S iid uniforms form a uniform P-subset (in decreasing order,
     # so the first P of a larger k are the same P).
-    return jax.lax.top_k(jax.random.uniform(key, (n_population,)), n_draws)[1].astype(jnp.int32)
+    return jax.lax.top_k(draws_.uniform(key, (n_population,)), n_draws)[1].astype(jnp.int32)
 
 
 class SceneDraw(eqx.Module):
@@ -155,7 +168,7 @@ def draw_scene(
         :class:`SceneDraw` without a batch axis.
     """
     key_light, key_surf = _scene_subkeys(key)[:2]
-    light = jax.random.randint(key_light, (), 0, n_lights)
+    light = draws_.randint(key_light, (), n_lights)
     return SceneDraw(light=light, surfaces=draw_without_replacement(key_surf, n_reflectances, n_surfaces, slots))
 
 
@@ -218,14 +231,14 @@ def sample_one(
     if fluorescent is not None:
         assert tables.fluorescent_rgb is not None and tables.canonical_fluorescent_rgb is not None
         key_which, key_identity = jax.random.split(jax.random.fold_in(key, FLUORESCENT_STREAM))
-        is_fluorescent = jax.random.uniform(key_which, (n_slots,)) < fluorescent.probability
-        identity = jax.random.randint(key_identity, (n_slots,), 0, tables.fluorescent_rgb.shape[1])
+        is_fluorescent = draws_.uniform(key_which, (n_slots,)) < fluorescent.probability
+        identity = draws_.randint(key_identity, (n_slots,), tables.fluorescent_rgb.shape[1])
         rgb = jnp.where(is_fluorescent[:, None], tables.fluorescent_rgb[light, identity], rgb)
         canonical = jnp.where(is_fluorescent[:, None], tables.canonical_fluorescent_rgb[identity], canonical)
     if specular is not None:
-        is_specular = jax.random.uniform(key_spec, (n_slots,)) < specular.probability
-        # Draws in the tables' dtype (float32 tables under jax_enable_x64 must not meet float64 draws).
-        draw = jax.random.uniform(key_amount, (n_slots,), rgb.dtype)
+        is_specular = draws_.uniform(key_spec, (n_slots,)) < specular.probability
+        # Drawn in float32 and cast to the tables' dtype (ccjax.scenes._draws).
+        draw = draws_.uniform(key_amount, (n_slots,), rgb.dtype)
         amount = jnp.where(is_specular, draw * specular.max_amount, 0.0)
         rgb = rgb + amount[:, None] * white
         canonical = canonical + amount[:, None] * tables.canonical_white
@@ -233,22 +246,22 @@ def sample_one(
         # §8.3 / A11: S' = S + s M, s ~ U(0, max_amount), M uniform over the tables' metals.
         assert tables.metal_rgb is not None and tables.canonical_metal_rgb is not None
         key_which, key_metal, key_strength = jax.random.split(jax.random.fold_in(key, METAL_STREAM), 3)
-        is_metal = jax.random.uniform(key_which, (n_slots,)) < metallic.probability
-        metal = jax.random.randint(key_metal, (n_slots,), 0, tables.metal_rgb.shape[1])
-        draw = jax.random.uniform(key_strength, (n_slots,), rgb.dtype)
+        is_metal = draws_.uniform(key_which, (n_slots,)) < metallic.probability
+        metal = draws_.randint(key_metal, (n_slots,), tables.metal_rgb.shape[1])
+        draw = draws_.uniform(key_strength, (n_slots,), rgb.dtype)
         strength = jnp.where(is_metal, draw * metallic.max_amount, 0.0)
         rgb = rgb + strength[:, None] * tables.metal_rgb[light, metal]
         canonical = canonical + strength[:, None] * tables.canonical_metal_rgb[metal]
     if noise is not None:
         sigma = jnp.sqrt(noise.a * rgb + noise.b)
-        rgb = jnp.maximum(rgb + sigma * jax.random.normal(key_noise, rgb.shape, rgb.dtype), 0.0)
+        rgb = jnp.maximum(rgb + sigma * draws_.normal(key_noise, rgb.shape, rgb.dtype), 0.0)
     mask = jnp.ones((n_slots,), bool)
     if clip is not None:
         mask = jnp.all(rgb <= clip, axis=-1)
     if slots is not None:
         live = jnp.arange(slots, dtype=jnp.int32) < n_surfaces
         rgb, canonical, mask = jnp.where(live[:, None], rgb, 0.0), jnp.where(live[:, None], canonical, 0.0), mask & live
-    return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical)
+    return Scenes(rgb=rgb, mask=mask, illuminant=white, canonical_rgb=canonical, light=light)
 
 
 @partial(jax.jit, static_argnames=("n_surfaces", "specular", "noise", "clip", "metallic", "fluorescent"))
@@ -360,6 +373,7 @@ def sample(
     fluorescent: Fluorescent | bool | None = None,
     metals: Float[ArrayLike, "M 101"] | None = None,
     fluorescent_surfaces: RadianceModel | None = None,
+    lights: str = "test",
 ) -> Scenes:
     """Draw a batch of synthetic scenes (Barnard 1999 §4.7).
 
@@ -382,9 +396,21 @@ def sample(
         fluorescent_surfaces: the :class:`RadianceModel` of the fluorescent surfaces (default:
             the nine synthetic surfaces' physical model,
             :func:`ccjax.materials.synthetic_fluorescent_surfaces`).
+        lights: ``"test"`` (the thesis' scenes, under the world's test illuminants) or
+            ``"train"`` (under its training illuminants, the lights the estimators were fitted
+            to); ``Scenes.light`` indexes that set.
 
     Returns:
         :class:`Scenes` with batch size ``n_scenes``.
+
+    Example:
+        Scenes under the training lights, with per-scene light indices:
+
+        >>> import jax, ccjax, numpy as np
+        >>> world = ccjax.World.default()
+        >>> scenes = ccjax.sample(jax.random.key(0), world, 4, 8, lights="train")
+        >>> np.allclose(scenes.illuminant, world.train_whites[scenes.light])
+        True
     """
     n_reflectances = int(world.reflectances.shape[0])
     n_scenes = require_count(n_scenes, "n_scenes", 1, limits.SAMPLE_SCENES)
@@ -394,6 +420,7 @@ def sample(
         world,
         metals=(True if metals is None else metals) if options.metallic is not None else None,
         fluorescent=default_fluorescent(fluorescent_surfaces) if options.fluorescent is not None else None,
+        lights=lights,
     )
     keys = scene_keys(key, 0, n_scenes)
     return sample_batch(

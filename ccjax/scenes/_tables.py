@@ -30,6 +30,8 @@ class SceneTables(eqx.Module):
     """Per-world response tables from which scenes are gathered (computed once per world).
 
     The metal and fluorescent tables are ``None`` unless :meth:`from_world` was asked for them.
+    The lights are the world's test illuminants unless :meth:`from_world` was given
+    ``lights="train"`` (then every "test illuminant" below reads "training illuminant").
 
     Attributes:
         surface_rgb: ``(J, S, 3)`` every reflectance under every test illuminant.
@@ -38,6 +40,7 @@ class SceneTables(eqx.Module):
         canonical_white: ``(3,)`` a perfect white under the canonical light.
         metal_rgb, canonical_metal_rgb: the metal spectra likewise (or ``None``).
         fluorescent_rgb, canonical_fluorescent_rgb: the fluorescent surfaces likewise (or ``None``).
+        lights: which of the world's light sets the tables hold, ``"test"`` or ``"train"`` (static).
     """
 
     surface_rgb: Float[Array, "J S 3"]  # every reflectance under every test illuminant
@@ -48,6 +51,7 @@ class SceneTables(eqx.Module):
     canonical_metal_rgb: Float[Array, "M 3"] | None = None
     fluorescent_rgb: Float[Array, "J F 3"] | None = None  # every fluorescent surface under every test illuminant
     canonical_fluorescent_rgb: Float[Array, "F 3"] | None = None
+    lights: str = eqx.field(static=True, default="test")
 
     @classmethod
     def from_world(
@@ -56,8 +60,9 @@ class SceneTables(eqx.Module):
         *,
         metals: Float[ArrayLike, "M 101"] | bool | None = None,
         fluorescent: RadianceModel | None = None,
+        lights: str = "test",
     ) -> SceneTables:
-        """Tables of ``world`` under its test illuminants (and its canonical light).
+        """Tables of ``world`` under its test (or training) illuminants and its canonical light.
 
         Arguments:
             world: the world.
@@ -67,16 +72,21 @@ class SceneTables(eqx.Module):
             fluorescent: a :class:`RadianceModel` for :class:`Fluorescent` surfaces (e.g.
                 ``ccjax.materials.synthetic_fluorescent_surfaces()`` or its
                 ``characterise(...)``), or ``None``.
+            lights: ``"test"`` (the world's test illuminants, the thesis' scene lights) or
+                ``"train"`` (its training illuminants).
 
         Returns:
             :class:`SceneTables`.
         """
+        if lights not in ("test", "train"):
+            raise ValueError(f"lights: expected 'test' or 'train', got {lights!r}")
+        illuminants = world.test_illuminants if lights == "test" else world.train_illuminants
         sensors = world.camera.sensors
-        surface_rgb, whites, canonical_rgb, canonical_white = _world_tables(world)
+        surface_rgb, whites, canonical_rgb, canonical_white = _world_tables(world, illuminants)
         metal_rgb = canonical_metal_rgb = fluorescent_rgb = canonical_fluorescent_rgb = None
         if metals is not None and metals is not False:
             spectra = _metal_table(metals, sensors.dtype)
-            lit_sensors = world.test_illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
+            lit_sensors = illuminants[:, :, None] * sensors[None]  # (J, 101, 3)
             metal_rgb = einsum("ml,jlc->jmc", spectra, lit_sensors)
             canonical_metal_rgb = matmul(spectra * world.canonical, sensors)
         if fluorescent is not None:
@@ -85,10 +95,10 @@ class SceneTables(eqx.Module):
                     "fluorescent: expected a model with a radiance(illuminants) method, "
                     f"got {type(fluorescent).__name__}"
                 )
-            lights = jnp.concatenate([world.test_illuminants, world.canonical[None]])
-            signals = jnp.asarray(fluorescent.radiance(lights), dtype=sensors.dtype)  # (J + 1, F, 101)
-            if signals.ndim != 3 or signals.shape[0] != lights.shape[0] or signals.shape[-1] != lights.shape[-1]:
-                raise ValueError(f"fluorescent: radiance of {lights.shape} lights has shape {signals.shape}")
+            spectra = jnp.concatenate([illuminants, world.canonical[None]])
+            signals = jnp.asarray(fluorescent.radiance(spectra), dtype=sensors.dtype)  # (J + 1, F, 101)
+            if signals.ndim != 3 or signals.shape[0] != spectra.shape[0] or signals.shape[-1] != spectra.shape[-1]:
+                raise ValueError(f"fluorescent: radiance of {spectra.shape} lights has shape {signals.shape}")
             if not bool(jnp.all(jnp.isfinite(signals))) or bool(jnp.any(signals < 0)):
                 raise ValueError("fluorescent: radiance contains negative or non-finite values")
             responses = matmul(signals, sensors)
@@ -102,16 +112,17 @@ class SceneTables(eqx.Module):
             canonical_metal_rgb=canonical_metal_rgb,
             fluorescent_rgb=fluorescent_rgb,
             canonical_fluorescent_rgb=canonical_fluorescent_rgb,
+            lights=lights,
         )
 
 
 @eqx.filter_jit
-def _world_tables(world: World) -> tuple[Array, Array, Array, Array]:
+def _world_tables(world: World, illuminants: Array) -> tuple[Array, Array, Array, Array]:
     """The tables every scene needs, as one program (eagerly, each product is a program of its own
-    to compile): every reflectance and a white under every test illuminant and the canonical one."""
-    lit_sensors = world.test_illuminants[:, :, None] * world.camera.sensors[None]  # (J, 101, 3)
+    to compile): every reflectance and a white under every one of the lights and the canonical one."""
+    lit_sensors = illuminants[:, :, None] * world.camera.sensors[None]  # (J, 101, 3)
     surface_rgb = einsum("sl,jlc->jsc", world.reflectances, lit_sensors)
-    return surface_rgb, world.test_whites, world.canonical_rgb, world.canonical_white
+    return surface_rgb, world.camera.response(illuminants), world.canonical_rgb, world.canonical_white
 
 
 def _metal_table(metals, dtype) -> Float[Array, "M 101"]:
@@ -124,7 +135,13 @@ def _metal_table(metals, dtype) -> Float[Array, "M 101"]:
 
 
 def require_tables(tables: SceneTables, metallic: Metallic | None, fluorescent: Fluorescent | None) -> None:
-    """A ``ValueError`` naming the option when ``tables`` lack the colours it needs."""
+    """A ``ValueError`` naming the option when ``tables`` lack the colours it needs.
+
+    Arguments:
+        tables: the scene tables to draw from.
+        metallic: the metallic-highlight option (needs ``tables.metal_rgb``), or ``None``.
+        fluorescent: the fluorescent option (needs ``tables.fluorescent_rgb``), or ``None``.
+    """
     if metallic is not None and tables.metal_rgb is None:
         raise ValueError(
             "metallic: the scene tables have no metals; build them with SceneTables.from_world(world, metals=True)"
