@@ -19,13 +19,15 @@ Input (``--inputs``):
            pixels, each the mean of up to four, as the reference code's masked, antialiased
            downsampling to 32 x 48 does on the originals.
   pool4    the same with 4 x 4 blocks (16 x 16).
-  blur3    3 x 3 masked means at every pixel (64 x 64 kept): the noise of pool2's averaging
-           without its loss of pixels.
+  blur3    3 x 3 masked means at every pixel (64 x 64 kept): averaging without pool2's loss of
+           pixels.
   sat<f>   also mask every pixel with a channel at or above ``f`` of the image's maximum (``sat0.5``).
   dark<f>  also mask every pixel with a channel below ``f`` of the image's maximum (``dark0.02``).
 
-Run: ``python benchmarks/nus_ceiling.py /work/photosets/nus8-C1 --seeds 0 --settings choose,camera
---inputs shipped,pool2`` (one line per folder, variant and seed; ``--json`` keeps the per-image errors).
+Run: ``python benchmarks/nus_ceiling.py photosets/nus8-C1 --seeds 0 --settings camera --inputs
+shipped,pool2,blur3`` (one line per folder, variant, setting and seed; each variant after the first
+also with the paired bootstrap 95 % interval of its change of the mean and the median against the
+first input with the same setting and seed; ``--json`` appends the per-image errors).
 """
 
 from __future__ import annotations
@@ -40,11 +42,9 @@ import numpy as np
 
 from ccjax.estimators.base import estimate_batch
 from ccjax.estimators.ffcc import CANDIDATES, Hyperparameters, choose, init_ffcc, train
-from ccjax.io import read_ground_truth
-from ccjax.io.ground_truth import match_ground_truth
+from ccjax.io import match_ground_truth, read_ground_truth
 from ccjax.metrics import angular_error
-from ccjax.training import assign_folds
-from ccjax.training._data import read_examples
+from ccjax.training import assign_folds, read_examples
 
 SATURATION = 64224
 """The clip level of the development thumbnails, in file codes (0.98 of 65535)."""
@@ -137,6 +137,14 @@ def cross_validate(x, mask, lights, names, seed: int, settings: Hyperparameters 
     return errors
 
 
+def paired_change(before: np.ndarray, after: np.ndarray, draws: int = 2000) -> str:
+    """The paired bootstrap 95 % intervals of the change of the mean and of the median."""
+    pick = np.random.default_rng(0).integers(0, len(before), (draws, len(before)))
+    mean = np.percentile(after[pick].mean(axis=1) - before[pick].mean(axis=1), [2.5, 97.5])
+    median = np.percentile(np.median(after[pick], axis=1) - np.median(before[pick], axis=1), [2.5, 97.5])
+    return f"change: mean {mean[0]:+.2f} to {mean[1]:+.2f}, median {median[0]:+.2f} to {median[1]:+.2f}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("folders", nargs="+", type=Path, help="NUS-8 camera folders (nus8-<camera>)")
@@ -148,6 +156,7 @@ def main() -> None:
     for folder in args.folders:
         camera = folder.name.removeprefix("nus8-")
         x0, mask0, lights, names = load(folder)
+        first: dict[tuple[str, int], np.ndarray] = {}
         for variant in args.inputs.split(","):
             x, mask = prepared(x0, mask0, variant)
             for setting in args.settings.split(","):
@@ -155,10 +164,12 @@ def main() -> None:
                 for seed in (int(s) for s in args.seeds.split(",")):
                     start = time.perf_counter()
                     errors = cross_validate(x, mask, lights, names, seed, fixed)
+                    base = first.setdefault((setting, seed), errors)
+                    change = "" if base is errors else "; " + paired_change(base, errors)
                     print(
                         f"{camera:11s} {variant:9s} {setting:7s} seed {seed}: mean {errors.mean():.2f} "
                         f"median {np.median(errors):.2f} ({len(errors)} images, "
-                        f"usable px {mask.mean():.3f}, {time.perf_counter() - start:.0f} s)",
+                        f"usable px {mask.mean():.3f}, {time.perf_counter() - start:.0f} s{change})",
                         flush=True,
                     )
                     if args.json:
