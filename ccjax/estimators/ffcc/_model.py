@@ -99,8 +99,8 @@ class FFCC(AbstractImageEstimator):
         pool: the image is reduced to the means of its usable pixels in ``pool x pool`` blocks
             before its histograms (:func:`ccjax.estimators.ffcc.block_means`; 1: every pixel as
             given; static). Thumbnails made by sampling rather than averaging the photograph keep
-            its pixel noise, which scatters the histogram: the NUS-8 development thumbnails
-            score lower errors with 2 (docs/camera-without-labels.md).
+            its pixel noise, which scatters the histogram: on the NUS-8 development thumbnails
+            2 lowers the mean error (docs/camera-without-labels.md).
     """
 
     filters: Float[Array, "2 n n"]
