@@ -1,7 +1,8 @@
 """Independent NumPy references for FFCC (Barron & Tsai 2017), written from the paper's and the
 reference code's definitions with plain loops: the masked local absolute deviation, the wrapped
 log-chroma histogram (nearest bin centre on the torus), periodic 2-D convolution by explicit
-shifts, and the bivariate von Mises fit from the marginals' circular moments."""
+shifts, the bivariate von Mises fit from the marginals' circular moments, and the masked block
+means of a statistics image."""
 
 from __future__ import annotations
 
@@ -29,6 +30,22 @@ def local_absolute_deviation(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
             if count:
                 out[y, x] = total / count
     return out
+
+
+def block_means(image: np.ndarray, mask: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per ``block x block`` tile (the last row and column of tiles cut short at the image's
+    edge), the mean of its usable pixels and whether it has any (the reference code's weighted
+    downsampling: the masked sum over the tile divided by the usable count)."""
+    height, width, _ = image.shape
+    rows, cols = -(-height // block), -(-width // block)
+    means, usable = np.zeros((rows, cols, 3)), np.zeros((rows, cols), bool)
+    for i in range(rows):
+        for j in range(cols):
+            tile = image[i * block : (i + 1) * block, j * block : (j + 1) * block].reshape(-1, 3)
+            keep = mask[i * block : (i + 1) * block, j * block : (j + 1) * block].reshape(-1)
+            if keep.any():
+                means[i, j], usable[i, j] = tile[keep].astype(np.float64).mean(axis=0), True
+    return means, usable
 
 
 def nearest_bin(value: float, origin: float, bins: int, bin_size: float) -> int:

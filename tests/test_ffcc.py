@@ -19,12 +19,14 @@ from ccjax.estimators.base import estimate_batch
 from ccjax.estimators.ffcc import (
     FFCC,
     Hyperparameters,
+    block_means,
     choose,
     convolve,
     featurize,
     fit_von_mises,
     init_ffcc,
     local_absolute_deviation,
+    train,
     wrapped_histogram,
 )
 from ccjax.estimators.ffcc._fitting import from_latent, loss, preconditioner
@@ -176,6 +178,42 @@ def _synthetic_scenes(seed: int, count: int, size: int = 12):
     reflectance = np.repeat(np.repeat(patches, size // 4, axis=1), size // 4, axis=2)
     images = (reflectance * lights[:, None, None, :] * 0.4).clip(0, 1).astype(np.float32)
     return images, np.ones(images.shape[:3], bool), lights.astype(np.float32)
+
+
+@pytest.mark.parametrize("block", [1, 2, 3])
+def test_block_means_match_oracle(block):
+    """7 x 9 is no multiple of 2 or 3: the edge tiles average the pixels they have; a tile with no
+    usable pixel is unusable."""
+    image, mask = _image(5)
+    mask[:3, :3] = False  # a whole 2 x 2 and 3 x 3 tile unusable
+    means, usable = block_means(jnp.asarray(image), jnp.asarray(mask), block)
+    expected, expected_usable = oracle.block_means(image, mask, block)
+    np.testing.assert_array_equal(np.asarray(usable), expected_usable)
+    np.testing.assert_allclose(np.asarray(means)[expected_usable], expected[expected_usable], rtol=1e-6)
+    with pytest.raises(ValueError, match="pool"):
+        init_ffcc(pool=0)
+
+
+def test_pooled_model_histograms_block_means_and_keeps_its_pool(default_world, tmp_path):
+    """``FFCC-pool2`` histograms the 2 x 2 block means (pixels and their edges); training (here
+    without iterations) and a model file keep the pool."""
+    image, mask = _image(6)
+    model = registry.fit("FFCC-pool2", default_world)
+    assert isinstance(model, FFCC) and model.pool == 2
+    means, usable = oracle.block_means(image, mask, 2)
+    edges = oracle.local_absolute_deviation(means, usable)
+    got = np.asarray(model.histogram(jnp.asarray(image), jnp.asarray(mask)))
+    for channel, values in enumerate((means, edges)):
+        rgb = values.reshape(-1, 3)
+        valid = usable.reshape(-1) & np.all(rgb >= model.minimum, axis=-1)
+        np.testing.assert_allclose(
+            got[channel], oracle.histogram(rgb, valid, np.asarray(model.origin), 64, 1 / 32), atol=1e-6
+        )
+    images, masks, lights = _synthetic_scenes(13, 8)
+    trained, _ = train(model, images, masks, lights, Hyperparameters(pretrain_iterations=0, iterations=0))
+    assert trained.pool == 2
+    path = store.save_trained(tmp_path / "ffcc.eqx", trained, label="FFCC-pool2", camera=None)
+    assert store.load_model(path).pool == 2
 
 
 @pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes

@@ -12,7 +12,13 @@ regularisers; ``ccjax train --method FFCC`` and ``ccjax evaluate --train FFCC`` 
 
 from ccjax.estimators.ffcc._adapt import AdaptOptions, adapt_bias, light_density
 from ccjax.estimators.ffcc._fitting import Hyperparameters, TrainingRecord, histograms, train
-from ccjax.estimators.ffcc._histogram import MINIMUM_INTENSITY, featurize, local_absolute_deviation, wrapped_histogram
+from ccjax.estimators.ffcc._histogram import (
+    MINIMUM_INTENSITY,
+    block_means,
+    featurize,
+    local_absolute_deviation,
+    wrapped_histogram,
+)
 from ccjax.estimators.ffcc._model import BIN_SIZE, BINS, FFCC, ORIGIN, Posterior, convolve, uv_to_rgb
 from ccjax.estimators.ffcc._selection import CANDIDATES, choose
 from ccjax.estimators.ffcc._vonmises import fit_von_mises, gaussian_nll
@@ -30,6 +36,7 @@ __all__ = [
     "Posterior",
     "TrainingRecord",
     "adapt_bias",
+    "block_means",
     "choose",
     "convolve",
     "featurize",
@@ -45,7 +52,7 @@ __all__ = [
 ]
 
 
-def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIGIN) -> FFCC:
+def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIGIN, pool: int = 1) -> FFCC:
     """An untrained :class:`FFCC` (zero filters and bias: a uniform distribution), the start of
     training.
 
@@ -54,6 +61,8 @@ def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIG
         bin_size: log-chroma width of a bin (training may widen it, :func:`.fitting.fit_grid`).
         origin: log-chroma of bin ``(0, 0)``'s centre on both axes (training re-centres it on
             the training lights).
+        pool: the side of the blocks whose means the histograms count (:attr:`FFCC.pool`; 1:
+            every pixel).
 
     Returns:
         The :class:`FFCC`.
@@ -62,19 +71,26 @@ def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIG
 
     if bins < 2 or bins % 2:
         raise ValueError(f"bins: expected an even number >= 2, got {bins}")
+    if isinstance(pool, bool) or not isinstance(pool, int) or pool < 1:
+        raise ValueError(f"pool: expected an integer >= 1, got {pool!r}")
     return FFCC(
         filters=jnp.zeros((2, bins, bins), jnp.float32),
         bias=jnp.zeros((bins, bins), jnp.float32),
         origin=jnp.full((2,), origin, jnp.float32),
         bin_size=jnp.asarray(bin_size, jnp.float32),
+        pool=pool,
     )
 
 
 @register(
-    r"FFCC",
+    r"FFCC(?:-pool([1-9][0-9]?))?",
     example="FFCC",
-    description="Fast Fourier Color Constancy (Barron & Tsai 2017; untrained until ccjax train / evaluate --train)",
+    description="Fast Fourier Color Constancy (Barron & Tsai 2017; untrained until ccjax train / evaluate --train); "
+    "FFCC-pool<k>: its histograms of k x k block means",
+    grammar="FFCC[-pool<k>]",
     input_kind="image",
 )
 def _build_ffcc(world, match, **options):
+    if match.group(1) is not None:
+        options.setdefault("pool", int(match.group(1)))
     return init_ffcc(**options)

@@ -412,5 +412,5 @@ def train(
         losses.append(float(value))
     filters = from_latent(latent[0], scales[0])
     bias = from_latent(latent[1], scales[1])
-    trained = FFCC(filters, bias, origin, bin_size=size, diagonal=h.diagonal, minimum=model.minimum)
+    trained = FFCC(filters, bias, origin, bin_size=size, diagonal=h.diagonal, minimum=model.minimum, pool=model.pool)
     return trained, TrainingRecord([float(x) for x in np.asarray(losses)], time.perf_counter() - start)

@@ -17,7 +17,7 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.neural import log_chroma
 
-__all__ = ["MINIMUM_INTENSITY", "featurize", "local_absolute_deviation", "wrapped_histogram"]
+__all__ = ["MINIMUM_INTENSITY", "block_means", "featurize", "local_absolute_deviation", "wrapped_histogram"]
 
 MINIMUM_INTENSITY = 1.0 / 256.0
 """Channels below this, in units of the sensor's saturation level (1.0 on ccjax's linear scale), are
@@ -26,6 +26,34 @@ not trusted (the reference code's ``HISTOGRAM.MINIMUM_INTENSITY``)."""
 _HALF_NEIGHBOURHOOD = ((0, 1), (1, 0), (1, 1), (1, -1))
 """One of each pair of opposite 3x3 neighbour offsets: ``|a - b| = |b - a|``, so each difference
 is computed once and credited to both pixels of the pair."""
+
+
+def block_means(
+    image: Float[Array, "H W 3"], mask: Bool[Array, "H W"], block: int
+) -> tuple[Float[Array, "h w 3"], Bool[Array, "h w"]]:
+    """The image reduced to the means of its usable pixels in ``block x block`` blocks (the
+    reference code's masked downsampling of a camera image to its statistics image, e.g. the
+    32 x 48 NUS-8 thumbnails): a block without a usable pixel is unusable. An image whose sides are
+    not multiples of ``block`` is padded with unusable pixels, so every pixel counts.
+
+    Arguments:
+        image: ``(H, W, 3)`` linear RGB.
+        mask: ``(H, W)`` usable pixels.
+        block: the block's side in pixels (1: the image and mask unchanged).
+
+    Returns:
+        ``(means (ceil(H / block), ceil(W / block), 3), usable blocks)``.
+    """
+    if block == 1:
+        return image, mask
+    height, width = mask.shape
+    rows, cols = -(-height // block), -(-width // block)
+    pad = ((0, rows * block - height), (0, cols * block - width))
+    weight = jnp.pad(mask, pad).astype(image.dtype)
+    total = jnp.pad(image, (*pad, (0, 0))) * weight[..., None]
+    sums = total.reshape(rows, block, cols, block, 3).sum(axis=(1, 3))
+    counts = weight.reshape(rows, block, cols, block).sum(axis=(1, 3))
+    return sums / jnp.maximum(counts, 1.0)[..., None], counts > 0
 
 
 def local_absolute_deviation(image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Float[Array, "H W 3"]:
