@@ -445,8 +445,7 @@ def pattern_search(
         steps: iterations (static).
         scales: the stencil spacings of one iteration, relative to the current one (static).
         value: the objective at ``start`` when the caller has it (its grid value): then
-            ``objective`` is traced once, in the loop, not also for the start (half the
-            search's program).
+            ``objective`` is traced once, in the loop (half the search's program).
 
     Returns:
         The best (r,g) found.
@@ -470,18 +469,9 @@ def pattern_search_carrying(
     value: Float[Array, ""],
     extra: Float[Array, ""],
 ) -> tuple[Float[Array, "2"], Float[Array, ""]]:
-    """:func:`pattern_search` for an objective that also returns a by-product per point
-    (``rg -> (values, extras)``), carrying the best point's: MV's ``1/T``, so that no other
-    loop over the forms evaluates it again at the answer.
-
-    Arguments:
-        objective: ``rg (N, 2) -> ((N,), (N,))``.
-        start, half_step, steps, scales: as :func:`pattern_search`.
-        value, extra: the objective and the by-product at ``start``.
-
-    Returns:
-        ``(best (r,g), its by-product)``.
-    """
+    """:func:`pattern_search` of an objective ``rg -> (values, extras)`` from its ``value`` and
+    ``extra`` at ``start``, carrying the best point's extra (MV's ``1/T``: no other form loop
+    evaluates it at the answer). Returns ``(best (r,g), its extra)``."""
     unit = np.arange(-2.0, 3.0)
     offsets = np.stack(np.meshgrid(unit, unit, indexing="ij"), axis=-1).reshape(-1, 2)
     offsets = offsets[np.any(offsets != 0, axis=1)]  # the centre is the carried value
