@@ -428,6 +428,7 @@ def pattern_search(
     half_step: Float[Array, "2"],
     steps: int,
     scales: tuple[float, ...] = (1.0,),
+    value: Float[Array, ""] | None = None,
 ) -> Float[Array, "2"]:
     """Maximise ``objective`` (``-inf`` where infeasible) from a feasible (r,g) start.
 
@@ -447,10 +448,34 @@ def pattern_search(
         start: the best grid direction; ``half_step``: the initial stencil spacing.
         steps: iterations (static).
         scales: the stencil spacings of one iteration, relative to the current one (static).
+        value: the objective at ``start`` when the caller has it (its grid value): then
+            ``objective`` is traced once, in the loop (half the search's program).
 
     Returns:
         The best (r,g) found.
     """
+    if value is None:
+        value = objective(start[None])[0]
+
+    def both(rg):
+        values = objective(rg)
+        return values, values
+
+    return pattern_search_carrying(both, start, half_step, steps, scales, value, value)[0]
+
+
+def pattern_search_carrying(
+    objective: Callable[[Float[Array, "N 2"]], tuple[Float[Array, " N"], Float[Array, " N"]]],
+    start: Float[Array, "2"],
+    half_step: Float[Array, "2"],
+    steps: int,
+    scales: tuple[float, ...],
+    value: Float[Array, ""],
+    extra: Float[Array, ""],
+) -> tuple[Float[Array, "2"], Float[Array, ""]]:
+    """:func:`pattern_search` of an objective ``rg -> (values, extras)`` from its ``value`` and
+    ``extra`` at ``start``, carrying the best point's extra (MV's ``1/T``: no other form loop
+    evaluates it at the answer). Returns ``(best (r,g), its extra)``."""
     unit = np.arange(-2.0, 3.0)
     offsets = np.stack(np.meshgrid(unit, unit, indexing="ij"), axis=-1).reshape(-1, 2)
     offsets = offsets[np.any(offsets != 0, axis=1)]  # the centre is the carried value
@@ -460,15 +485,15 @@ def pattern_search(
     shrink = 0.5 * min(scales)
 
     def step(carry, _):
-        centre, value, half = carry
+        centre, value, half, kept = carry
         candidates = centre + stencil * half
-        values = objective(candidates)
+        values, extras = objective(candidates)
         best = jnp.argmax(values)
         better = values[best] > value
         centre = jnp.where(better, candidates[best], centre)
+        kept = jnp.where(better, extras[best], kept)
         half = jnp.where(better, 2.0 * factor[best] * half, shrink * half)
-        return (centre, jnp.maximum(values[best], value), half), None
+        return (centre, jnp.maximum(values[best], value), half, kept), None
 
-    value = objective(start[None])[0]
-    (centre, _, _), _ = jax.lax.scan(step, (start, value, half_step), None, length=steps)
-    return centre
+    (centre, _, _, kept), _ = jax.lax.scan(step, (start, value, half_step, extra), None, length=steps)
+    return centre, kept

@@ -10,8 +10,15 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ccjax.estimators.gamut._constraints_3d import Grid, Observations, inverse_extent, violations
-from ccjax.estimators.gamut._engine import CERTIFICATE_SLACK, EDGE, directions, leading, max_of_forms, pattern_search
+from ccjax.estimators.gamut._constraints_3d import Grid, Observations, violations
+from ccjax.estimators.gamut._engine import (
+    CERTIFICATE_SLACK,
+    EDGE,
+    directions,
+    leading,
+    max_of_forms,
+    pattern_search_carrying,
+)
 from ccjax.estimators.gamut._weights import log_volume, normalised
 from ccjax.precision import matmul
 
@@ -31,7 +38,9 @@ def hard(model, grid: Grid, mask_violation, level, feasible: Bool[Array, " G"], 
         level: the relaxation level; feasible: ``(G,)`` the mask on the grid; log_t: ``(G,)``.
     """
     u, _, _ = directions(grid.rg)
-    start = grid.rg[jnp.argmax(jnp.where(feasible, log_volume(log_t, u), -jnp.inf))]
+    volumes = jnp.where(feasible, log_volume(log_t, u), -jnp.inf)
+    best = jnp.argmax(volumes)
+    start = grid.rg[best]
     lo, hi = start - BOX_STEPS * grid.step, start + BOX_STEPS * grid.step
     n_obs, k1, _ = grid.observations.top.shape
     every = grid.observations.top.reshape(n_obs * k1, 3)
@@ -41,19 +50,25 @@ def hard(model, grid: Grid, mask_violation, level, feasible: Bool[Array, " G"], 
 
     def objective(rg):
         u, v, valid = directions(rg)
-        # Inside the box the kept forms give the same maximum (the same form reaches it: bitwise);
-        # outside, every form (a loop that runs one step when no candidate of the batch is out).
-        inside = jnp.all((rg >= lo) & (rg <= hi), axis=-1)
-        outside_count = jnp.where(jnp.all(inside), 1, every_count)
-        inverse = jnp.where(inside, max_of_forms(v, near, kept), max_of_forms(v, every, outside_count))
+        # Inside the box the kept forms give the same maximum (the same form reaches it: bitwise),
+        # so a batch wholly inside reads only those, any other every form: one loop either way
+        # (one copy of it in the program).
+        inside = jnp.all(jnp.all((rg >= lo) & (rg <= hi), axis=-1))
+        inverse = max_of_forms(v, jnp.where(inside, near, every), jnp.where(inside, kept, every_count))
         _, surface, illuminant, cone = violations(model, v, valid, grid.observations, grid.count)
         inside = valid & (mask_violation(surface, illuminant, cone) <= level) & (inverse > 0)
         value = log_volume(-jnp.log(jnp.where(inside, inverse, 1.0)), u)
-        return jnp.where(inside, value, -jnp.inf)
+        return jnp.where(inside, value, -jnp.inf), inverse
 
-    centre = pattern_search(objective, start, grid.step / 2, model.options.refine_steps, model.options.refine_scales)
-    u, v, _ = directions(centre[None])
-    return u[0] * inverse_extent(v, grid.observations, grid.count)[0]
+    # The start's objective and 1/T are its grid values (the same forms and violations; the
+    # grid's 1/T is the same at valid directions), and the search carries the best point's 1/T:
+    # the objective is traced once, inside the search's loop, and no other form loop is needed.
+    options = model.options
+    at_start = (volumes[best], grid.inverse_extent[best])
+    centre, inverse = pattern_search_carrying(
+        objective, start, grid.step / 2, options.refine_steps, options.refine_scales, *at_start
+    )
+    return directions(centre[None])[0][0] * inverse
 
 
 def box_forms(

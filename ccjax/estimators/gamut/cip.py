@@ -151,8 +151,11 @@ class CIP(AbstractSurfaceEstimator):
                 inside = region(candidates) <= level
                 return jnp.where(inside, _log_area(directions(candidates)[0]), -jnp.inf)
 
-            best = rg[jnp.argmax(jnp.where(feasible, _log_area(u), -jnp.inf))]
-            direction = directions(pattern_search(objective, best, step / 2, options.refine_steps)[None])[0][0]
+            areas = jnp.where(feasible, _log_area(u), -jnp.inf)
+            index = jnp.argmax(areas)
+            # The start's objective is its grid value: the objective is traced once, in the loop.
+            centre = pattern_search(objective, rg[index], step / 2, options.refine_steps, value=areas[index])
+            direction = directions(centre[None])[0][0]
         else:
             direction = self._average(u.T, _constraints_cip.coverage(v - level, options.fine_points))
         return finish(direction, jnp.any(valid), ~failed & jnp.any(feasible), level, self.fallback.astype(rgb.dtype))
