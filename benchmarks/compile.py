@@ -2,7 +2,9 @@
 
 Per gamut program (a label at a number of surface slots), each in a fresh process (no program
 cache: every measurement traces and compiles from nothing), the program built the way the run
-engine builds it (``eqx.filter_jit`` of :func:`ccjax.runs.engine.group_errors` on one model):
+engine builds it: ``eqx.filter_jit`` of the engine's estimate program of one model
+(:func:`ccjax.runs.engine.estimate_scenes`), or, on a base tree from before programs were keyed by
+model, of its group program (``group_errors``) on that model alone:
 
 * trace + lower: CPU seconds of ``.lower(...)`` (Python tracing and the StableHLO text);
 * compile: CPU seconds of ``.compile()`` (XLA; its threads included);
@@ -72,22 +74,27 @@ def child(program: str, kind: str, scenes_count: int, repeats: int, world_name: 
             cpus.append(time.process_time() - start)
         return {"run": scenes_count / float(np.median(cpus))}
 
-    from ccjax.runs.engine import group_errors
+    from ccjax.runs import engine
 
     white = jax.numpy.asarray(world.canonical_white, jax.numpy.float32)
-    program_fn = eqx.filter_jit(group_errors)
+    if hasattr(engine, "estimate_scenes"):
+        program_fn = eqx.filter_jit(engine.estimate_scenes)
+        arguments = (model, batch.rgb, batch.mask)
+    else:  # a base tree whose engine compiles groups of models
+        program_fn = eqx.filter_jit(engine.group_errors)  # pyright: ignore[reportAttributeAccessIssue]
+        arguments = ((model,), batch, white)
     start = time.process_time()
-    lowered = program_fn.lower((model,), batch, white)
+    lowered = program_fn.lower(*arguments)
     lower = time.process_time() - start
     lines = lowered.as_text().count("\n")
     start = time.process_time()
     compiled = lowered.compile()
     compile_seconds = time.process_time() - start
-    jax.block_until_ready(compiled((model,), batch, white))
+    jax.block_until_ready(compiled(*arguments))
     cpus = []
     for _ in range(repeats):
         start = time.process_time()
-        jax.block_until_ready(compiled((model,), batch, white))
+        jax.block_until_ready(compiled(*arguments))
         cpus.append(time.process_time() - start)
     return {"lower": lower, "compile": compile_seconds, "hlo": lines, "run": scenes_count / float(np.median(cpus))}
 
