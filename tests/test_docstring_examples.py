@@ -34,7 +34,7 @@ EXAMPLES = _examples()
 
 
 def test_the_examples_are_found():
-    assert {test.name.rsplit(".", 1)[-1] for test in EXAMPLES} >= {"plot_sweep"}
+    assert {test.name.rsplit(".", 1)[-1] for test in EXAMPLES} >= {"plot_sweep", "adaptation_sharpening"}
 
 
 @pytest.mark.parametrize("test", EXAMPLES, ids=lambda test: test.name)
