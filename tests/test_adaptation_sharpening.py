@@ -20,15 +20,9 @@ from ccjax.world import World
 
 
 @pytest.fixture(scope="module")
-def world(default_world) -> World:
-    """A quick world: 300 reflectances, 20 training and 40 test lights of the default world."""
-    return World(
-        reflectances=default_world.reflectances[::6][:300],
-        train_illuminants=default_world.train_illuminants[::4][:20],
-        test_illuminants=default_world.test_illuminants[::7][:40],
-        canonical=default_world.canonical,
-        camera=default_world.camera,
-    )
+def world(small_test_world) -> World:
+    """The small world of the command tests (Planck lights, every 8th SFU reflectance)."""
+    return small_test_world
 
 
 def _cmfs() -> np.ndarray:

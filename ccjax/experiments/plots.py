@@ -120,22 +120,15 @@ def plot_sweep(
     _finish(fig, path, title or f"{result.n_scenes} scenes per point")
 
 
-def plot(
-    result: SweepResult,
-    path,
-    statistics: str | Sequence[str] = ("rg", "angular"),
-    summary: str = "rms",
-    title: str | None = None,
-) -> None:
+def plot(result: SweepResult, path, *args, **kwargs) -> None:
     """Deprecated alias of :func:`plot_sweep` (named like the other plots); it warns and will be
     removed in the next release.
 
     Arguments:
         result: a sweep.
         path: the PNG to write, or a binary file.
-        statistics: one panel per statistic.
-        summary: the summary of the per-scene errors.
-        title: the figure title.
+        *args: :func:`plot_sweep`'s ``statistics``, ``summary``, ``title``, in order.
+        **kwargs: the same by name.
 
     Returns:
         None; the figure is written to ``path``.
@@ -143,7 +136,7 @@ def plot(
     warnings.warn(
         "ccjax.experiments.plot is deprecated: use ccjax.experiments.plot_sweep", DeprecationWarning, stacklevel=2
     )
-    plot_sweep(result, path, statistics, summary, title)
+    plot_sweep(result, path, *args, **kwargs)
 
 
 def plot_world(world: World, path) -> None:
