@@ -27,8 +27,7 @@ from ccjax.experiments._cameras import (
     sfu321_check,
     sharpening_study,
 )
-from ccjax.experiments.plots import plot as plot  # deprecated alias of plot_sweep, not in __all__
-from ccjax.experiments.plots import plot_sweep, plot_world
+from ccjax.experiments.plots import plot, plot_sweep, plot_world  # plot: plot_sweep's deprecated alias
 from ccjax.experiments.protocols import BASIC_COLUMNS, PROTOCOLS, Condition, Reproduction, reproduce
 from ccjax.experiments.reports import Column, Report
 from ccjax.experiments.results import SweepResult
@@ -55,6 +54,7 @@ __all__ = [
     "camera_listing",
     "curve_check",
     "is_registered",
+    "plot",
     "plot_curve_check",
     "plot_sweep",
     "plot_world",
