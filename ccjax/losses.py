@@ -21,6 +21,8 @@ All losses are pure ``jnp`` functions: usable under ``jit``, ``vmap`` and ``grad
 
 from __future__ import annotations
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
@@ -74,9 +76,22 @@ def _check_rgb(name: str, x) -> Array:
     return x
 
 
+def _angular_errors(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
+    """Per-item angles of :func:`angular_loss`: :func:`ccjax.metrics.angular_error` with the loss's
+    zero-error band, and 90 degrees with gradient 0 where either vector is zero."""
+    estimate, truth = _check_rgb("estimate", estimate), _check_rgb("truth", truth)
+    estimate, estimate_ok = _directed(estimate)
+    truth, truth_ok = _directed(truth)
+    angle = _zero_error_band(metrics.angular_error(estimate, truth), unit=180.0 / jnp.pi)
+    return jnp.where(estimate_ok & truth_ok, angle, jnp.full_like(angle, 90.0))
+
+
 def angular_errors(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
-    """Per-item recovery angular error in degrees (:func:`ccjax.metrics.angular_error`) with safe
-    gradients: 0 at zero error; 90 degrees with gradient 0 where either vector is zero.
+    """Deprecated alias of :func:`ccjax.metrics.angular_error` (the one per-item angular error);
+    it warns and will be removed in the next release.
+
+    It returns what it always did: the angles of :func:`ccjax.metrics.angular_error` (also
+    gradient-safe at zero error), except 90 degrees where both vectors are zero.
 
     Arguments:
         estimate: ``(..., 3)`` estimated illuminant RGB.
@@ -85,11 +100,13 @@ def angular_errors(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, 
     Returns:
         ``(...)`` angles in degrees.
     """
-    estimate, truth = _check_rgb("estimate", estimate), _check_rgb("truth", truth)
-    estimate, estimate_ok = _directed(estimate)
-    truth, truth_ok = _directed(truth)
-    angle = _zero_error_band(metrics.angular_error(estimate, truth), unit=180.0 / jnp.pi)
-    return jnp.where(estimate_ok & truth_ok, angle, jnp.full_like(angle, 90.0))
+    warnings.warn(
+        "ccjax.losses.angular_errors is deprecated: use ccjax.metrics.angular_error (per item) or "
+        "ccjax.losses.angular_loss (the mean)",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return _angular_errors(estimate, truth)
 
 
 def angular_loss(
@@ -107,7 +124,7 @@ def angular_loss(
     Returns:
         The (weighted) mean angle; its gradient is finite everywhere and 0 at zero error.
     """
-    return _reduce(angular_errors(estimate, truth), weight)
+    return _reduce(_angular_errors(estimate, truth), weight)
 
 
 def reproduction_errors(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:

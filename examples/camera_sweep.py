@@ -34,7 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ccjax import cameras, losses
+from ccjax import cameras, metrics
 from ccjax.camera import Camera
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch
@@ -68,7 +68,7 @@ def scene_angles(model, world: World, keys, n_surfaces: int) -> jax.Array:
     """Per-scene angular errors of ``model`` on the scenes of ``keys`` in ``world`` (call under jit)."""
     scenes = sample_batch(keys, SceneTables.from_world(world), n_surfaces)
     estimate = estimate_batch(model, scenes.rgb, scenes.mask).illuminant
-    return losses.angular_errors(estimate, scenes.illuminant)
+    return metrics.angular_error(estimate, scenes.illuminant)
 
 
 def same_shapes(models: list) -> list:

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ccjax import augment, losses, scenes
+from ccjax import augment, losses, metrics, scenes
 from ccjax.estimators import registry
 from ccjax.estimators.base import estimate_batch, input_kind_of
 from ccjax.estimators.correlation import ColourByCorrelation
@@ -161,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
         # share a compiled program (a jit closing over each model would compile it twice).
         inputs = (held_out.image, image_mask) if input_kind_of(model) == "image" else (rgb, mask)
         estimate = batch_estimate(model, *inputs).illuminant
-        errors[name] = np.asarray(losses.angular_errors(estimate, held_out.illuminant))
+        errors[name] = np.asarray(metrics.angular_error(estimate, held_out.illuminant))
 
     lights = world.test_illuminants.shape[0]
     print(f"\nheld-out: {args.images} Mondrians of {SIZE}x{SIZE} under the {lights} test lights")

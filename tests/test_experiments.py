@@ -50,7 +50,7 @@ def test_sweep_rows_and_outputs(small_sweep, tmp_path):
     assert small_sweep.to_csv().splitlines()[0].startswith("method,surfaces,statistic")
     table = small_sweep.table("rgb")
     assert "NOTHING" in table and "*" in table  # not applicable to a chromaticity method
-    experiments.plot(small_sweep, tmp_path / "plot.png")
+    experiments.plot_sweep(small_sweep, tmp_path / "plot.png")
     assert (tmp_path / "plot.png").stat().st_size > 10_000
 
 
@@ -320,3 +320,25 @@ def test_sfu321_camera_check(barnard_world):
     check = experiments.sfu321_check(barnard_world)
     assert len(check.rows) == 11 and sum(row["images"] for row in check.rows) == 321
     assert all(0.0 <= row["angular"] < 5.0 for row in check.rows), check.text()
+
+
+def test_plot_sweep_draws_the_rms_of_each_cell(small_sweep, tmp_path, monkeypatch):
+    """Each line of the figure is the RMS of the per-scene errors (NumPy, the thesis' aggregate),
+    one point per surface count; the deprecated ``plot`` warns and draws the same figure."""
+    from ccjax.experiments import plots
+
+    figures = []
+    monkeypatch.setattr(plots, "write_figure", lambda fig, path, **options: figures.append(fig))
+    experiments.plot_sweep(small_sweep, tmp_path / "one.png", statistics="angular")
+    with pytest.warns(DeprecationWarning, match="plot_sweep"):
+        experiments.plot(small_sweep, tmp_path / "two.png", statistics=["angular"])
+    for fig in figures:
+        (ax,) = [ax for ax in fig.axes if ax.lines]
+        for line in ax.lines:
+            method = line.get_label()
+            expected = [np.sqrt(np.mean(small_sweep.errors[method][n]["angular"] ** 2)) for n in small_sweep.surfaces]
+            np.testing.assert_allclose(line.get_ydata(), expected, rtol=1e-6)
+            np.testing.assert_allclose(line.get_xdata(), np.log2(small_sweep.surfaces))
+        assert sorted(line.get_label() for line in ax.lines) == sorted(small_sweep.methods)
+    with pytest.raises(ValueError, match="statistics"):
+        experiments.plot_sweep(small_sweep, tmp_path / "three.png", statistics="angle")

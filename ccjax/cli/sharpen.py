@@ -18,6 +18,10 @@ from ccjax.cli.common import (
     write_plot,
 )
 
+ADAPTATION_METHODS = ("bradford", "cat02", "cat16")
+"""``--method`` names of the standard adaptation transforms (ccjax.sharpening.ADAPTATION_TRANSFORMS, lower
+case: the parser is built without importing JAX)."""
+
 
 def add_sharpen(sub) -> None:
     p = sub.add_parser(
@@ -26,13 +30,15 @@ def add_sharpen(sub) -> None:
         description="Compute a sharpening transform T for the world's camera (thesis ch. 5): 'new' (the thesis' "
         "method: mapping error over the training lights + positivity + norm, from the identity), "
         "'database' (eigenvectors of the best linear map for one test light) or 'average' (database "
-        "sharpening for the mean training light). Prints T, the sharpened sensors' negative-lobe "
+        "sharpening for the mean training light), or a standard chromatic adaptation transform for comparison "
+        "('bradford', 'cat02', 'cat16': colour-science's matrix after a camera -> XYZ map fitted on the world's "
+        "surfaces). Prints T, the sharpened sensors' negative-lobe "
         "fractions and RMS mapping errors over the test lights (white = 255).",
     )
     world_arguments(p)
     p.add_argument(
         "--method",
-        choices=["new", "database", "average"],
+        choices=["new", "database", "average", *ADAPTATION_METHODS],
         default="new",
         help="sharpening method (default: %(default)s)",
     )
@@ -137,6 +143,9 @@ def run_sharpen(args) -> int:
         )
     elif args.method == "average":
         transform = sharpening.average_sharpening(world)
+    elif args.method in ADAPTATION_METHODS:
+        (name,) = [name for name in sharpening.ADAPTATION_TRANSFORMS if name.lower() == args.method]
+        transform = sharpening.adaptation_sharpening(world, name)
     else:
         n_lights = int(world.test_illuminants.shape[0])
         if not 0 <= args.light < n_lights:

@@ -162,7 +162,7 @@ def run_compare(args) -> int:
         plotted = [[[result.value(m, n, s) for n in result.surfaces] for m in result.methods] for s in PLOTTED]
         write_plot(
             args.plot,
-            lambda file: experiments.plot(result, file, statistics=PLOTTED, title=title),
+            lambda file: experiments.plot_sweep(result, file, statistics=PLOTTED, title=title),
             overwrite=args.overwrite,
             drawn_from=("compare", title, result.methods, result.surfaces, plotted),
         )

@@ -6,7 +6,7 @@
 * :mod:`ccjax.experiments.protocols` -- the thesis tables behind ``ccjax reproduce`` (each condition
   a synthetic source of the same engine);
 * :mod:`ccjax.experiments.reports` -- the tidy-rows :class:`Report` (text, CSV, JSON);
-* :mod:`ccjax.experiments.plots` -- error versus number of surfaces, world chromaticities;
+* :mod:`ccjax.experiments.plots` -- error versus number of surfaces (:func:`plot_sweep`), world chromaticities;
 * camera studies (:mod:`ccjax.experiments._cameras`) -- the camera list, the SFU-321 camera check, the
   sharpness study and the ground truth's check against a camera (:func:`curve_check`).
 
@@ -27,7 +27,7 @@ from ccjax.experiments._cameras import (
     sfu321_check,
     sharpening_study,
 )
-from ccjax.experiments.plots import plot, plot_world
+from ccjax.experiments.plots import plot, plot_sweep, plot_world  # plot: plot_sweep's deprecated alias
 from ccjax.experiments.protocols import BASIC_COLUMNS, PROTOCOLS, Condition, Reproduction, reproduce
 from ccjax.experiments.reports import Column, Report
 from ccjax.experiments.results import SweepResult
@@ -56,6 +56,7 @@ __all__ = [
     "is_registered",
     "plot",
     "plot_curve_check",
+    "plot_sweep",
     "plot_world",
     "reproduce",
     "require_surface_estimator",

@@ -23,10 +23,12 @@ from ccjax import metrics
 from ccjax.precision import matmul
 from ccjax.scenes import draw_scenes, sweep_keys
 from ccjax.sharpening import (
+    ADAPTATION_TRANSFORMS,
     THESIS_SCALE,
     EstimatorFit,
     NewSharpening,
     Sharpened,
+    adaptation_sharpening,
     average_sharpening,
     best_diagonal_map,
     best_linear_error,
@@ -42,6 +44,10 @@ from ccjax.world import World
 SHARPENINGS = ("none", "opt", "ave", "new")
 """The sharpenings of Table 5.1: none, per-scene database ("opt"), average database ("ave") and
 the new method ("new", §5.3)."""
+
+ADAPTATIONS = {name.lower(): name for name in ADAPTATION_TRANSFORMS}
+"""More sharpenings :func:`chapter5_errors` compares (not in Table 5.1): the standard chromatic
+adaptation transforms (:func:`ccjax.sharpening.adaptation_sharpening`), by their lower-case names."""
 
 
 class Chapter5Scenes(eqx.Module):
@@ -218,7 +224,8 @@ def chapter5_errors(
         world: normally :meth:`World.barnard1999`.
         methods: estimator labels and/or ``BEST-LINEAR``, ``BEST-DIAGONAL``, ``ACTUAL``.
         sharpenings: any of ``none``, ``opt`` (per-scene database sharpening with the true light),
-            ``ave`` (database sharpening with the mean training light), ``new`` (§5.3).
+            ``ave`` (database sharpening with the mean training light), ``new`` (§5.3), and the
+            adaptation transforms ``bradford``, ``cat02``, ``cat16`` (:data:`ADAPTATIONS`).
         n_scenes, n_surfaces: the scenes (thesis: 1000 of 8 surfaces).
         key: PRNG key of the scenes (default ``jax.random.key(0)``).
         new: a precomputed :func:`ccjax.sharpening.new_sharpening` result (computed if needed
@@ -228,9 +235,9 @@ def chapter5_errors(
     Returns:
         :class:`Chapter5Result`.
     """
-    unknown = [s for s in sharpenings if s not in SHARPENINGS]
+    unknown = [s for s in sharpenings if s not in SHARPENINGS and s not in ADAPTATIONS]
     if unknown:
-        raise ValueError(f"sharpenings: unknown {unknown}; expected some of {SHARPENINGS}")
+        raise ValueError(f"sharpenings: unknown {unknown}; expected some of {SHARPENINGS + tuple(ADAPTATIONS)}")
     if not isinstance(n_scenes, int) or n_scenes < 1:
         raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")
     from ccjax.estimators import registry
@@ -247,6 +254,8 @@ def chapter5_errors(
         new = new_sharpening(world) if new is None else new
         fixed["new"] = new.transform
         result.info["new"] = new
+    for name in ADAPTATIONS.keys() & set(sharpenings):
+        fixed[name] = np.asarray(adaptation_sharpening(world, ADAPTATIONS[name]))
     if "opt" in sharpenings:
         per_light = jnp.asarray(optimal_sharpening(world), dtype)
     for name, t in fixed.items():

@@ -1,5 +1,5 @@
-"""Figures of the experiments: error versus number of surfaces, a world's chromaticities, and the
-per-image errors of an image evaluation.
+"""Figures of the experiments: error versus number of surfaces (:func:`plot_sweep`, a sweep's
+figure), a world's chromaticities, and the per-image errors of an image evaluation.
 
 matplotlib is imported inside each function (with the non-interactive Agg backend), so importing
 ccjax never needs it.
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import typing
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -60,16 +61,42 @@ def method_styles(count: int) -> list[dict]:
     ]
 
 
-def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"), summary: str = "rms", title=None):
-    """Error versus number of surfaces (log2 x axis, as the figures of Barnard 1999 ch. 4), one panel per statistic.
+def plot_sweep(
+    result: SweepResult,
+    path,
+    statistics: str | Sequence[str] = ("rg", "angular"),
+    summary: str = "rms",
+    title: str | None = None,
+) -> None:
+    """Plot a sweep: error versus number of surfaces (log2 x axis, as the figures of Barnard 1999
+    ch. 4), one panel per statistic, one line per method, written as a PNG.
 
     Arguments:
-        result: a sweep.
+        result: a sweep (:func:`ccjax.experiments.sweep`).
         path: the PNG to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
-        statistics: one panel per statistic.
-        summary: the summary of the per-scene errors (``"rms"`` as in the thesis).
+        statistics: a statistic (``"angular"``) or several, one panel each; any of the result's
+            (:data:`STATISTIC_LABELS` names them).
+        summary: the summary of the per-scene errors (``"rms"`` as in the thesis; see
+            :func:`ccjax.metrics.summarise`).
         title: the figure title (default: the scenes per point).
+
+    Returns:
+        None; the figure is written to ``path``.
+
+    Raises:
+        ValueError: a statistic no method of ``result`` has.
+
+    Examples:
+        >>> import jax
+        >>> from ccjax import World, experiments
+        >>> result = experiments.sweep(World.default(), ["GW"], (4, 16), 20, jax.random.key(0), progress=False)
+        >>> experiments.plot_sweep(result, "sweep.png", statistics="angular")
     """
+    statistics = [statistics] if isinstance(statistics, str) else list(statistics)
+    present = {name for cells in result.errors.values() for cell in cells.values() for name in cell} - {"ok"}
+    unknown = [name for name in statistics if name not in present]
+    if not statistics or unknown:
+        raise ValueError(f"statistics: expected some of {sorted(present)}, got {statistics}")
     fig = new_figure(figsize=(5.5 * len(statistics), 4.2))
     axes = fig.subplots(1, len(statistics), squeeze=False)
     styles = method_styles(len(result.methods))
@@ -91,6 +118,25 @@ def plot(result: SweepResult, path, statistics: Sequence[str] = ("rg", "angular"
     handles, names = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, names, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))
     _finish(fig, path, title or f"{result.n_scenes} scenes per point")
+
+
+def plot(result: SweepResult, path, *args, **kwargs) -> None:
+    """Deprecated alias of :func:`plot_sweep` (named like the other plots); it warns and will be
+    removed in the next release.
+
+    Arguments:
+        result: a sweep.
+        path: the PNG to write, or a binary file.
+        *args: :func:`plot_sweep`'s ``statistics``, ``summary``, ``title``, in order.
+        **kwargs: the same by name.
+
+    Returns:
+        None; the figure is written to ``path``.
+    """
+    warnings.warn(
+        "ccjax.experiments.plot is deprecated: use ccjax.experiments.plot_sweep", DeprecationWarning, stacklevel=2
+    )
+    plot_sweep(result, path, *args, **kwargs)
 
 
 def plot_world(world: World, path) -> None:

@@ -184,7 +184,8 @@ def sweep(
             :attr:`SweepResult.cells_from_cache`.
 
     Returns:
-        A :class:`SweepResult`.
+        A :class:`SweepResult`: its tables (:meth:`SweepResult.report`, ``to_csv``, ``to_json``) and
+        its figure, one call: :func:`ccjax.experiments.plot_sweep`.
     """
     if not isinstance(n_scenes, int) or n_scenes < 1:
         raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")

@@ -9,6 +9,8 @@ algorithm runs there and its map ``d#`` acts back in camera space as ``T diag(d#
 * :mod:`ccjax.sharpening._new_method`: the thesis' new method (§5.3, "gd-identity");
 * :mod:`ccjax.sharpening._wrapper`: :func:`sharpened`, any estimator run in sharpened space with
   the revert policy (§5.2, §5.4);
+* :mod:`ccjax.sharpening._adaptation`: the standard chromatic adaptation transforms (Bradford,
+  CAT02, CAT16) as sharpening transforms of a camera, for comparison;
 * :mod:`ccjax.sharpening._learned`: ``T`` learned end to end through a differentiable estimator
   (beyond the thesis).
 
@@ -16,6 +18,7 @@ The chapter-5 experiments (Table 5.1, the transform summaries and plots of ``ccj
 camera ranking) are in :mod:`ccjax.experiments.chapter5`.
 """
 
+from ccjax.sharpening._adaptation import ADAPTATION_TRANSFORMS, adaptation_sharpening, camera_to_xyz, cat_matrix
 from ccjax.sharpening._learned import LearnedSharpening, learned_sharpening, scene_losses
 from ccjax.sharpening._new_method import (
     NEGATIVE_TOLERANCE,
@@ -46,6 +49,7 @@ from ccjax.sharpening._transforms import (
 from ccjax.sharpening._wrapper import EstimatorFit, Sharpened, estimator_fit, sharpened, sharpened_world
 
 __all__ = [
+    "ADAPTATION_TRANSFORMS",
     "NEGATIVE_TOLERANCE",
     "POSITIVITY_OFFSET",
     "THESIS_SCALE",
@@ -56,10 +60,13 @@ __all__ = [
     "ObjectiveTerms",
     "Sharpened",
     "actual_error",
+    "adaptation_sharpening",
     "average_sharpening",
     "best_diagonal_map",
     "best_linear_error",
     "best_linear_map",
+    "camera_to_xyz",
+    "cat_matrix",
     "database_responses",
     "database_sharpening",
     "diagonal_error",

@@ -20,7 +20,7 @@ from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
 
 from ccjax._adam import adam_init, adam_step, optax_step
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.losses import angular_errors
+from ccjax.metrics import angular_error as angular_errors  # gradient-safe at zero error
 from ccjax.precision import matmul
 from ccjax.scenes import draw_scenes, sweep_keys
 from ccjax.sharpening._new_method import on_sphere
