@@ -1,0 +1,96 @@
+"""The any-camera estimator: trained once on renders of a few cameras, bound to other cameras by
+their curves alone. The renders are NumPy's (Planck lights times SFU reflectances through each
+camera's curves), the oracle of every error here; shades of grey and FFCC trained on the camera's
+own renders are the two independent yardsticks."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from small_world import planck
+
+from ccjax import data
+from ccjax.camera import Camera
+from ccjax.estimators import conditioned, ffcc
+from ccjax.estimators.base import estimate_batch
+
+TRAIN = ("Canon EOS 5D Mark II", "Nikon D700", "Sony ILCE-7M3", "Fujifilm X-T3")
+ASKED = ("Canon EOS 600D", "Nikon D5300", "Panasonic DC-GX9", "Sony DSC-RX100M4", "Hasselblad L2D-20c")
+SETTINGS = ffcc.Hyperparameters(pretrain_iterations=8, iterations=24)
+BINS = 32
+
+
+def renders(camera: str, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` 16x16 Mondrians (4x4 patches of random SFU reflectances) under random mixes of two
+    Planck lights (2500-10000 K) through ``camera``'s curves, brightest pixel 0.8, and the
+    camera's RGB of white under each light."""
+    rng = np.random.default_rng(seed)
+    sensors = np.asarray(Camera.from_name(camera).sensors, np.float64)
+    reflectances = np.asarray(data.sfu_reflectances().values, np.float64)
+    kelvin = rng.uniform(2500.0, 10000.0, (count, 2))
+    mix = rng.uniform(0.0, 1.0, (count, 1))
+    spectra = np.stack([planck(t) for t in kelvin.reshape(-1)]).reshape(count, 2, -1)
+    spectra = spectra / spectra.mean(axis=-1, keepdims=True)
+    lights = mix * spectra[:, 0] + (1 - mix) * spectra[:, 1]  # (count, 101)
+    patches = reflectances[rng.integers(0, len(reflectances), (count, 16))]  # (count, 16, 101)
+    rgb = (patches * lights[:, None]) @ sensors  # (count, 16, 3)
+    rgb = rgb / rgb.max(axis=(1, 2), keepdims=True) * 0.8
+    images = np.repeat(np.repeat(rgb.reshape(count, 4, 4, 3), 4, axis=1), 4, axis=2)
+    images = images * rng.uniform(0.97, 1.03, images.shape)  # texture inside the patches
+    return images.astype(np.float32), np.ones(images.shape[:3], bool), (lights @ sensors).astype(np.float32)
+
+
+def angles(estimates: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    a = estimates / np.linalg.norm(estimates, axis=1, keepdims=True)
+    b = truth / np.linalg.norm(truth, axis=1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0)))
+
+
+@pytest.fixture(scope="module")
+def any_camera_model() -> conditioned.AnyCamera:
+    parts = [renders(camera, 48, seed) for seed, camera in enumerate(TRAIN)]
+    images, masks, lights = (np.concatenate([part[k] for part in parts]) for k in range(3))
+    matrices = np.concatenate(
+        [np.repeat(conditioned.reference_matrix(Camera.from_name(c))[None], 48, axis=0) for c in TRAIN]
+    )
+    model, _ = conditioned.train(images, masks, lights, matrices, SETTINGS, bins=BINS)
+    return model
+
+
+def test_one_model_serves_cameras_it_never_saw_by_their_curves(any_camera_model):
+    for index, camera in enumerate(ASKED):
+        images, masks, lights = renders(camera, 48, 100 + index)
+        bound = any_camera_model.bind(Camera.from_name(camera))
+        errors = angles(np.asarray(estimate_batch(bound, jnp.asarray(images), jnp.asarray(masks)).illuminant), lights)
+        grey = angles(np.sum(images.astype(np.float64) ** 6, axis=(1, 2)) ** (1 / 6), lights)  # shades of grey p 6
+        own_images, own_masks, own_lights = renders(camera, 192, 200 + index)  # as many as the pool
+        own, _ = ffcc.train(ffcc.init_ffcc(BINS), own_images, own_masks, own_lights, SETTINGS)
+        own_errors = angles(np.asarray(estimate_batch(own, jnp.asarray(images), jnp.asarray(masks)).illuminant), lights)
+        assert np.median(errors) < np.median(grey), camera
+        assert np.median(errors) <= 1.5 * np.median(own_errors), camera
+
+
+def test_binding_is_a_map_from_the_curves_and_a_file_holds_none(any_camera_model):
+    camera = Camera.from_name(ASKED[0])
+    bound = any_camera_model.bind(camera)
+    assert bound.camera == ASKED[0] and any_camera_model.camera is None
+    np.testing.assert_array_equal(np.asarray(bound.unbound().matrix), np.eye(3))
+    # The map takes the camera's whites under the bank of lights onto the reference camera's
+    # (least squares over surfaces and a heavily weighted white): within a degree.
+    bank = conditioned.light_bank()
+    whites = bank @ np.asarray(camera.sensors, np.float64)
+    reference = bank @ conditioned.reference_sensors()
+    mapped = whites @ conditioned.reference_matrix(camera).T
+    assert np.max(angles(mapped, reference)) < 1.0
+
+
+def test_twins_are_the_same_model_or_a_fingerprint_within_half_a_degree():
+    cameras = {name: Camera.from_name(name) for name in ("Canon EOS 600D", "Canon EOS M", "Nikon D5300")}
+    assert conditioned.model_name("Jiang: Canon 600D") == conditioned.model_name("Canon EOS 600D") == "canon 600d"
+    assert conditioned.twins(cameras["Canon EOS 600D"], cameras) == ["Canon EOS 600D"]
+    blend = Camera.from_array(
+        0.99 * np.asarray(cameras["Nikon D5300"].sensors) + 0.01 * np.asarray(cameras["Canon EOS M"].sensors), "blend"
+    )
+    assert conditioned.twins(blend, cameras) == ["Nikon D5300"]
+    assert conditioned.fingerprint_distance(cameras["Canon EOS 600D"], cameras["Nikon D5300"]) > 0.5
