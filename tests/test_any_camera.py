@@ -94,3 +94,50 @@ def test_twins_are_the_same_model_or_a_fingerprint_within_half_a_degree():
     )
     assert conditioned.twins(blend, cameras) == ["Nikon D5300"]
     assert conditioned.fingerprint_distance(cameras["Canon EOS 600D"], cameras["Nikon D5300"]) > 0.5
+
+
+def test_a_fold_never_sees_the_scored_folders_ground_truth(
+    small_world_commands, small_test_world, tmp_path, monkeypatch
+):
+    """Leave-one-camera-out with any-camera on two folders, twice: the second time the canon
+    folder's ground truth is replaced by random lights from another region of the chromaticity
+    plane (green-blue, far from any Planck light). The model trained for the canon fold (a spy on
+    the trainer keeps it) is bit-identical and its estimates on the canon folder do not move."""
+    import functools
+
+    import jax
+
+    from ccjax import evaluation, io, scenes
+    from ccjax.runs import augmented
+
+    monkeypatch.setattr(augmented, "Augmentation", functools.partial(augmented.Augmentation, database=2, sampled=1))
+    kept = []
+    real = conditioned.train
+
+    def spy(*args, **kwargs):
+        model, record = real(*args, **kwargs)
+        kept.append(model)
+        return model, record
+
+    monkeypatch.setattr(conditioned, "train", spy)
+    folders, images = [], []
+    for index, (name, camera) in enumerate((("canon", "Canon EOS 600D"), ("nikon", "Nikon D5300"))):
+        batch = scenes.sample_mondrians(
+            jax.random.key(11 + index), small_test_world, 12, height=12, width=12, n_patches=5
+        )
+        images.append(np.asarray(batch.image))
+        truth = io.write_dataset(tmp_path / name, images[-1], np.asarray(batch.illuminant))
+        folders.append(evaluation.FolderSet(tmp_path / name, truth, camera))
+    protocol = evaluation.LeaveOneCameraOut(("any-camera",), copies=1)
+    label = "any-camera trained"
+    first = evaluation.evaluate(folders, ["GW"], protocol).sets[0].evaluation.results
+    rng = np.random.default_rng(5)
+    poisoned = np.stack([rng.uniform(0.05, 0.2, 12), np.ones(12), rng.uniform(0.8, 1.0, 12)], axis=1)
+    io.write_dataset(tmp_path / "canon", images[0], poisoned)
+    second = evaluation.evaluate(folders, ["GW"], protocol).sets[0].evaluation.results
+    assert len(kept) == 4  # canon's fold, then nikon's, twice
+    for a, b in zip(jax.tree_util.tree_leaves(kept[0]), jax.tree_util.tree_leaves(kept[2]), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    np.testing.assert_array_equal(first.estimates[label], second.estimates[label])
+    assert np.abs(np.asarray(first.truth) - np.asarray(second.truth)).max() > 0.1  # the poison is in place
+    assert not np.array_equal(np.asarray(kept[1].core.bias), np.asarray(kept[3].core.bias))  # ...and reached nikon's

@@ -170,6 +170,10 @@ def run_train_net(args) -> int:
 def run_train(args) -> int:
     from pathlib import Path
 
+    if args.method == "any-camera":
+        from ccjax.cli.any_camera import run_train_any_camera
+
+        return run_train_any_camera(args)
     if args.target_camera is not None or len(args.directory) > 1:
         return run_train_for_camera(args)
     if args.camera_for or args.ground_truth_name or args.camera_map != "per-light" or args.rendered or args.adapt_on:

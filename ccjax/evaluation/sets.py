@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ccjax.evaluation.any_camera import refuse_unbound
 from ccjax.evaluation.folders import (
     MODEL_SUFFIX,
     TRAINED_SUFFIX,
@@ -323,7 +324,8 @@ def save_fold_models(
 
 def check_model_cameras(methods: Sequence[str], folders: Sequence[FolderSet]) -> None:
     """Refuse a trained model file scored on a folder taken with another camera than the one its
-    record names (a model learns its camera's raw space; another camera's is another problem).
+    record names (a model learns its camera's raw space; another camera's is another problem), and
+    a camera-conditioned model on a folder without one (:func:`refuse_unbound`).
 
     Arguments:
         methods: labels and model files.
@@ -342,7 +344,9 @@ def check_model_cameras(methods: Sequence[str], folders: Sequence[FolderSet]) ->
             continue
         if not pathlib.Path(method).is_file():
             raise ValueError(f"methods: no such model file: {method}")
-        camera = read_model_metadata(pathlib.Path(method)).get("camera")
+        metadata = read_model_metadata(pathlib.Path(method))
+        camera = metadata.get("camera")
+        refuse_unbound(method, metadata, [folder.label for folder in folders if folder.camera is None])
         for folder in folders:
             if folder.camera is not None and camera is not None and folder.camera != camera:
                 raise ValueError(

@@ -151,7 +151,7 @@ def augment(
         for source in own:
             world = store.world("default", source, seed=world_seed)
             for k, camera in enumerate(bank):
-                copy, image = np.nonzero((chosen == k) & (source_array == source)[None, :])
+                _, image = np.nonzero((chosen == k) & (source_array == source)[None, :])
                 if not len(image):
                     continue
                 camera_map = fit_camera_map(source, camera, world=world)

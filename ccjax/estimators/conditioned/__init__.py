@@ -63,7 +63,7 @@ def init_any_camera() -> AnyCamera:
 @register(
     r"any-camera",
     example="any-camera",
-    description="one model for every camera, conditioned on its curves (untrained until ccjax train --method any-camera)",
+    description="one model for every camera, bound by its curves (untrained until ccjax train --method any-camera)",
     input_kind="image",
 )
 def _build_any_camera(world, match, **options):

@@ -33,7 +33,8 @@ def to_reference(
     images: Float[Array | np.ndarray, "N H W 3"],
     masks: Bool[Array | np.ndarray, "N H W"],
     lights: Float[Array | np.ndarray, "N 3"],
-    matrices: Float[Array | np.ndarray, "N 3 3"],
+    matrices: Float[Array | np.ndarray, "K 3 3"],
+    index: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Images and their lights in the reference camera's space: each pixel and light times its
     image's matrix; a pixel whose mapped colour leaves the positive octant leaves the mask (its
@@ -43,21 +44,28 @@ def to_reference(
         images: ``(N, H, W, 3)`` linear RGB of each image's own camera.
         masks: ``(N, H, W)`` usable pixels.
         lights: ``(N, 3)`` the ground truths (each image's camera RGB of white).
-        matrices: ``(N, 3, 3)`` each image's camera map (:func:`reference_matrix`).
+        matrices: ``(K, 3, 3)`` each entry's map into the reference space (:func:`reference_matrix`).
+        index: ``(K,)`` the image of each entry (default: entry ``k`` is image ``k``): copies of an
+            image under other maps cost a matrix, not an image.
 
     Returns:
-        ``(images, masks, lights)`` in the reference space (lights with largest channel 1), NumPy.
+        ``(images, masks, lights)`` of the ``K`` entries in the reference space (lights with
+        largest channel 1), NumPy.
     """
     count = len(images)
-    if not (len(masks) == len(lights) == len(matrices) == count):
+    if not (len(masks) == len(lights) == count):
         raise ValueError(
-            f"images, masks, lights, matrices: expected one of each per image, got "
-            f"{count}, {len(masks)}, {len(lights)}, {len(matrices)}"
+            f"images, masks, lights: expected one of each per image, got {count}, {len(masks)}, {len(lights)}"
         )
-    parts = [
-        _map(*(jnp.asarray(a[start : start + _CHUNK]) for a in (images, masks, lights, matrices)))
-        for start in range(0, count, _CHUNK)
-    ]
+    index = np.arange(count) if index is None else np.asarray(index)
+    if len(index) != len(matrices) or (len(index) and (index.min() < 0 or index.max() >= count)):
+        raise ValueError(f"index, matrices: expected one image index in [0, {count}) per matrix")
+    images, masks, lights = np.asarray(images), np.asarray(masks), np.asarray(lights)
+    parts = []
+    for start in range(0, len(index), _CHUNK):
+        chosen = index[start : start + _CHUNK]
+        arrays = (images[chosen], masks[chosen], lights[chosen], matrices[start : start + _CHUNK])
+        parts.append(_map(*(jnp.asarray(a) for a in arrays)))
     return tuple(np.concatenate([np.asarray(part[k]) for part in parts]) for k in range(3))  # type: ignore[return-value]
 
 
@@ -65,10 +73,11 @@ def train(
     images: Float[Array | np.ndarray, "N H W 3"],
     masks: Bool[Array | np.ndarray, "N H W"],
     lights: Float[Array | np.ndarray, "N 3"],
-    matrices: Float[Array | np.ndarray, "N 3 3"],
-    hyperparameters: Hyperparameters = Hyperparameters(),
+    matrices: Float[Array | np.ndarray, "K 3 3"],
+    hyperparameters: Hyperparameters | None = None,
     *,
     bins: int = BINS,
+    index: np.ndarray | None = None,
 ) -> tuple[AnyCamera, TrainingRecord]:
     """Train the any-camera estimator on images of several cameras (module docstring).
 
@@ -76,10 +85,11 @@ def train(
         images: ``(N, H, W, 3)`` linear RGB of each image's own camera, 1.0 = saturation.
         masks: ``(N, H, W)`` usable pixels.
         lights: ``(N, 3)`` the ground truths, each in its image's camera (every channel positive).
-        matrices: ``(N, 3, 3)`` each image's camera map into the reference space
+        matrices: ``(K, 3, 3)`` each entry's map into the reference space
             (:func:`ccjax.estimators.conditioned.reference_matrix` of its camera).
-        hyperparameters: FFCC's settings.
+        hyperparameters: FFCC's settings (default: :class:`~ccjax.estimators.ffcc.Hyperparameters`).
         bins: the histogram's bins per axis (even).
+        index: ``(K,)`` the image of each entry (:func:`to_reference`; default: one per image).
 
     Returns:
         ``(unbound AnyCamera, TrainingRecord)``.
@@ -91,10 +101,10 @@ def train(
         raise ValueError("images: the any-camera estimator needs at least one training image")
     if not bool(np.all(np.asarray(lights) > 0)):
         raise ValueError("lights: every channel of every training light must be positive")
-    mapped, usable, reference_lights = to_reference(images, masks, lights, matrices)
+    mapped, usable, reference_lights = to_reference(images, masks, lights, matrices, index)
     if not bool(np.all(reference_lights > 0)):
         raise ValueError("matrices: a training light leaves the positive octant in the reference space")
-    core, record = train_ffcc(init_ffcc(bins), mapped, usable, reference_lights, hyperparameters)
+    core, record = train_ffcc(init_ffcc(bins), mapped, usable, reference_lights, hyperparameters or Hyperparameters())
     del mapped
     model = AnyCamera(core=core, matrix=jnp.eye(3, dtype=core.bias.dtype))
     jax.block_until_ready(model)
