@@ -114,8 +114,8 @@ def test_a_fold_never_sees_the_scored_folders_ground_truth(
     kept = []
     real = conditioned.train
 
-    def spy(*args, **kwargs):
-        model, record = real(*args, **kwargs)
+    def spy(*args, **kwargs):  # the small settings of the test above
+        model, record = real(*args[:4], SETTINGS, bins=BINS, index=kwargs.get("index"))
         kept.append(model)
         return model, record
 
@@ -141,3 +141,47 @@ def test_a_fold_never_sees_the_scored_folders_ground_truth(
     np.testing.assert_array_equal(first.estimates[label], second.estimates[label])
     assert np.abs(np.asarray(first.truth) - np.asarray(second.truth)).max() > 0.1  # the poison is in place
     assert not np.array_equal(np.asarray(kept[1].core.bias), np.asarray(kept[3].core.bias))  # ...and reached nikon's
+
+
+def test_the_commands_train_once_and_bind_the_camera_named(small_world_commands, small_test_world, monkeypatch, capsys):
+    """``ccjax train --method any-camera`` records no camera, ``conditioned: true``, the cameras seen
+    and the folders; estimate needs --camera and gives, for the camera named, what the model bound
+    to that camera's curves gives; --target-camera is refused in one line."""
+    import functools
+    import json
+
+    import jax
+    from image_files import one_line_error
+
+    from ccjax import cli, io, scenes
+    from ccjax.runs import augmented, store
+
+    monkeypatch.setattr(augmented, "Augmentation", functools.partial(augmented.Augmentation, database=2, sampled=1))
+    real = conditioned.train
+    monkeypatch.setattr(conditioned, "train", lambda *a, **k: real(*a[:4], SETTINGS, bins=BINS, index=k.get("index")))
+    small = conditioned.AnyCamera(core=ffcc.init_ffcc(BINS), matrix=jnp.eye(3, dtype=jnp.float32))
+    monkeypatch.setattr(conditioned, "init_any_camera", lambda: small)  # the skeleton a model file is read into
+    root = small_world_commands
+    for index, name in enumerate(("canon", "nikon")):
+        batch = scenes.sample_mondrians(jax.random.key(21 + index), small_test_world, 8, height=12, width=12)
+        io.write_dataset(root / name, np.asarray(batch.image), np.asarray(batch.illuminant))
+    cameras = ["--camera-for", "canon=Canon EOS 600D", "--camera-for", "nikon=Nikon D5300"]
+    base = ["train", str(root / "canon"), str(root / "nikon"), *cameras, "--method", "any-camera", "--no-progress"]
+    assert cli.main([*base, "--target-camera", "Sony ILCE-7M3"]) == 2
+    one_line_error(capsys.readouterr(), "--target-camera", "any-camera")
+    assert cli.main([*base, "--out", str(root / "any.eqx")]) == 0
+    record = json.loads((root / "any.json").read_text())
+    assert record["camera"] is None and record["conditioned"] is True and record["label"] == "any-camera"
+    assert record["cameras_seen"] == ["Canon EOS 600D", "Nikon D5300"] and set(record["folders"]) == {"canon", "nikon"}
+    capsys.readouterr()
+    image = str(root / "canon" / "image-0000.png")
+    assert cli.main(["estimate", image, "--model", str(root / "any.eqx")]) == 2
+    one_line_error(capsys.readouterr(), "--camera")
+    assert cli.main(["estimate", image, "--model", str(root / "any.eqx"), "--camera", "Sony ILCE-7M3", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    bound = store.load_model(root / "any.eqx", camera="Sony ILCE-7M3")
+    assert bound.camera == "Sony ILCE-7M3"
+    photo = io.read_image(image)
+    rgb = np.asarray(bound(jnp.asarray(photo.rgb), ~jnp.asarray(photo.clipped)).illuminant)
+    found = np.asarray(printed[0]["illuminant"] if isinstance(printed, list) else printed["illuminant"])
+    np.testing.assert_allclose(found / found.sum(), rgb / rgb.sum(), rtol=1e-5)

@@ -23,26 +23,28 @@ ANY_CAMERA = "any-camera"
 """The label of the camera-conditioned estimator."""
 
 
-def refuse_unbound(method: str, record: dict, without_camera: Sequence[str]) -> None:
-    """Refuse a camera-conditioned model file (record ``conditioned: true``) on folders without a
-    camera: it is bound to the folder's camera at load.
+def refuse_unbound(method: str, record: dict, folders: Sequence) -> str | None:
+    """Refuse a camera-conditioned model file (record ``conditioned: true``) on a folder without a
+    camera (it is bound to the folder's camera at load).
 
     Arguments:
         method: the model file.
         record: its record.
-        without_camera: the labels of the folders without a camera.
+        folders: the folders (:class:`~ccjax.evaluation.FolderSet`) it will score.
 
     Returns:
-        None.
+        The camera the record names (None for a conditioned model, or one trained without curves).
 
     Raises:
-        ValueError: naming the model and the folders.
+        ValueError: naming the model and the folders without a camera.
     """
-    if record.get("conditioned") is True and without_camera:
+    without = [folder.label for folder in folders if folder.camera is None]
+    if record.get("conditioned") is True and without:
         raise ValueError(
             f"methods: model {method} serves any camera given its name (any-camera); name the camera of "
-            f"{', '.join(without_camera)} (--camera or --camera-for)"
+            f"{', '.join(without)} (--camera or --camera-for)"
         )
+    return record.get("camera")
 
 
 def kept_out(target: str, cameras: Sequence[str | None]) -> list[int]:
@@ -129,7 +131,8 @@ def train_any_camera(
     entries = augment(light, sources, bank, augmentation, world_seed=options.seed)
     if log is not None:
         log(
-            f"training any-camera on {len(x)} images of {len(set(sources))} cameras and {len(entries.index) - len(x)} copies"
+            f"training any-camera on {len(x)} images of {len(set(sources))} cameras "
+            f"and {len(entries.index) - len(x)} copies"
         )
     model, record = conditioned.train(x, mask, light, entries.matrices, index=entries.index)
     facts = {

@@ -148,7 +148,8 @@ class LeaveOneCameraOut(AbstractProtocol):
         notes.append(
             f"{ANY_CAMERA} trained on {facts['images']} images of {', '.join(f.label for f in training)} "
             f"({', '.join(facts['cameras_seen'])}) and {facts['entries'] - facts['images']} copies through "
-            f"{len(facts['augmentation']['cameras'])} other cameras, bound to {target}'s curves, in {facts['seconds']:.1f} s"
+            f"{len(facts['augmentation']['cameras'])} other cameras, bound to {target}'s curves, "
+            f"in {facts['seconds']:.1f} s"
         )
         return FolderModels(models.models, training_notes=notes)
 

@@ -324,8 +324,7 @@ def save_fold_models(
 
 def check_model_cameras(methods: Sequence[str], folders: Sequence[FolderSet]) -> None:
     """Refuse a trained model file scored on a folder taken with another camera than the one its
-    record names (a model learns its camera's raw space; another camera's is another problem), and
-    a camera-conditioned model on a folder without one (:func:`refuse_unbound`).
+    record names (a model learns its camera's raw space; another camera's is another problem).
 
     Arguments:
         methods: labels and model files.
@@ -344,9 +343,7 @@ def check_model_cameras(methods: Sequence[str], folders: Sequence[FolderSet]) ->
             continue
         if not pathlib.Path(method).is_file():
             raise ValueError(f"methods: no such model file: {method}")
-        metadata = read_model_metadata(pathlib.Path(method))
-        camera = metadata.get("camera")
-        refuse_unbound(method, metadata, [folder.label for folder in folders if folder.camera is None])
+        camera = refuse_unbound(method, read_model_metadata(pathlib.Path(method)), folders)
         for folder in folders:
             if folder.camera is not None and camera is not None and folder.camera != camera:
                 raise ValueError(
@@ -429,8 +426,7 @@ def evaluate(
         :class:`SetsEvaluation`: one row set per scored folder, the geometric means.
 
     Raises:
-        ValueError: no folder, two folders with one name, or what a folder's evaluation refuses
-            (prefixed with the folder).
+        ValueError: no folder, two folders with one name, or a folder's evaluation's refusal (prefixed with it).
     """
     from ccjax.runs import store
 
