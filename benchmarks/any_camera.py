@@ -54,7 +54,9 @@ def main() -> None:
     for entry in args.folders:
         folder, _, camera = entry.partition("=")
         directory = Path(folder)
-        data.append(read_folder(directory, directory / args.ground_truth_name, read, camera=camera, label=directory.name))
+        data.append(
+            read_folder(directory, directory / args.ground_truth_name, read, camera=camera, label=directory.name)
+        )
     start = time.perf_counter()
     model, log, record = train_any_camera(data, read, evaluation.TrainingOptions(seed=args.seed), copies=args.copies)
     seconds = time.perf_counter() - start
