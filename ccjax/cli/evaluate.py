@@ -127,6 +127,21 @@ def add_evaluate(sub) -> None:
         "curves); the scored folder's ground truth is never read for it",
     )
     p.add_argument(
+        "--twins-out",
+        action="store_true",
+        help="with --leave-one-camera-out: also keep out of each fold the folders whose camera is the scored "
+        "folder's camera or its twin (the same model from another source, or a fingerprint within 0.5 degrees)",
+    )
+    p.add_argument(
+        "--copies",
+        type=int,
+        default=2,
+        metavar="N",
+        help="with --leave-one-camera-out --train any-camera: augmented copies of each training image, seen "
+        "through other cameras of the database and sampled ones, never the scored camera or its twins "
+        "(default %(default)s)",
+    )
+    p.add_argument(
         "--epochs",
         type=int,
         default=None,
@@ -257,8 +272,12 @@ def check_folds(args) -> None:
             raise ValueError("--models: writes the fold models of --folds K --train; not with --leave-one-camera-out")
         if args.adapt and "FFCC" not in args.train:
             raise ValueError("--adapt: adapts FFCC's light prior; give --train FFCC")
-    elif args.camera_map != "per-light" or args.rendered or args.adapt:
-        raise ValueError("--camera-map, --rendered, --adapt: apply to --leave-one-camera-out only")
+        if args.rendered and "any-camera" in args.train:
+            raise ValueError("--rendered: images rendered through the scored camera are refused with any-camera")
+    elif args.camera_map != "per-light" or args.rendered or args.adapt or args.twins_out:
+        raise ValueError("--camera-map, --rendered, --adapt, --twins-out: apply to --leave-one-camera-out only")
+    if args.copies < 0:
+        raise ValueError(f"--copies: expected a non-negative number of copies, got {args.copies}")
     if args.rendered < 0:
         raise ValueError(f"--rendered: expected a non-negative number of images, got {args.rendered}")
     if args.epochs is not None:
@@ -301,7 +320,9 @@ def evaluation_values(args, cameras: dict[str, str | None], pretraining):
         for directory, truth in zip(args.directories, ground_truths(args), strict=True)
     ]
     if args.leave_one_camera_out:
-        protocol = evaluation.LeaveOneCameraOut(tuple(args.train), args.camera_map, args.rendered, args.adapt)
+        protocol = evaluation.LeaveOneCameraOut(
+            tuple(args.train), args.camera_map, args.rendered, args.adapt, args.twins_out, args.copies
+        )
     elif args.train:
         protocol = evaluation.TrainedInFolds(args.folds, tuple(args.train))
     else:

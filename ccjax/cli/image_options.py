@@ -235,7 +235,15 @@ def trained_model(args) -> tuple[str, AbstractEstimator, str | None]:
     if args.world != "default":
         raise ValueError("--model: the model's world comes from its record; leave out --world")
     check_camera_name(args)
-    camera = store.trained_record(args.model).get("camera")
+    record = store.trained_record(args.model)
+    camera = record.get("camera")
+    if record.get("conditioned") is True:
+        if args.camera is None:
+            raise ValueError(
+                f"--camera: the model {args.model} serves any camera given its name (any-camera); name the camera "
+                "of the images (`ccjax cameras` lists them)"
+            )
+        return Path(args.model).name, store.load_model(args.model, camera=args.camera), args.camera
     if args.camera is not None and camera is not None and args.camera != camera:
         raise ValueError(
             f"--camera: {args.camera!r} is not the camera of the model {args.model} ({camera!r}, from its record); "

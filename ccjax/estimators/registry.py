@@ -68,6 +68,7 @@ FAMILIES = (
     "ccjax.estimators.neural",
     "ccjax.estimators.spatial",
     "ccjax.estimators.ffcc",
+    "ccjax.estimators.conditioned",
 )
 _loaded = False
 

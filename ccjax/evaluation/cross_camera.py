@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 import equinox as eqx
 import jax.numpy as jnp
 
+from ccjax.evaluation.any_camera import ANY_CAMERA, kept_out, train_any_camera
 from ccjax.evaluation.folders import TRAINED_SUFFIX, FolderData, FolderModels
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
 from ccjax.evaluation.protocols import AbstractProtocol, Round
@@ -75,15 +76,24 @@ class LeaveOneCameraOut(AbstractProtocol):
         adapt: also score each trained FFCC with its light prior adapted to the scored folder's
             *unlabelled* images (label ``"<label> adapted"``, :func:`adapt_to_images`; its ground
             truth is never read).
+        twins_out: also keep out of each fold the folders whose camera is the scored folder's
+            camera or its twin (:func:`ccjax.evaluation.any_camera.kept_out`).
+        copies: the any-camera estimator's augmented copies of each training image.
     """
 
     train: tuple[str, ...] = eqx.field(static=True)
     camera_map: str = eqx.field(static=True, default="per-light")
     rendered: int = eqx.field(static=True, default=0)
     adapt: bool = eqx.field(static=True, default=False)
+    twins_out: bool = eqx.field(static=True, default=False)
+    copies: int = eqx.field(static=True, default=2)
 
     def __check_init__(self) -> None:
         _check(self.train, self.camera_map, self.rendered)
+        if ANY_CAMERA in self.train and self.rendered:
+            raise ValueError("rendered: images rendered through the scored camera are refused for any-camera")
+        if isinstance(self.copies, bool) or not isinstance(self.copies, int) or self.copies < 0:
+            raise ValueError(f"copies: expected a non-negative integer, got {self.copies!r}")
 
     def trained_labels(self) -> tuple[str, ...]:
         return self.train
@@ -97,23 +107,51 @@ class LeaveOneCameraOut(AbstractProtocol):
             raise ValueError(
                 f"folders: leave-one-camera-out needs at least two folders with a camera, got {len(chosen)}"
             )
-        return [Round(index, tuple(other for other in chosen if other != index)) for index in chosen]
+        rounds = []
+        for index in chosen:
+            out = set(kept_out(str(cameras[index]), cameras)) if self.twins_out else set()
+            training = tuple(other for other in chosen if other != index and other not in out)
+            if not training:
+                raise ValueError(f"twins_out: folder index {index} has no folder left to train on")
+            rounds.append(Round(index, training))
+        return rounds
 
     def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
-        return train_on_pool(
-            data,
-            training,
-            methods,
-            trained,
-            world,
-            read,
-            options,
-            self.camera_map,
-            self.rendered,
-            progress,
-            log,
-            adapt=self.adapt,
+        pooled = [label for label in trained if label != ANY_CAMERA]
+        if not pooled:
+            from ccjax.runs import store
+
+            models = FolderModels({label: [store.fit(label, world)] for label in methods}, training_notes=[])
+        else:
+            models = train_on_pool(
+                data,
+                training,
+                methods,
+                pooled,
+                world,
+                read,
+                options,
+                self.camera_map,
+                self.rendered,
+                progress,
+                log,
+                adapt=self.adapt,
+            )
+        if ANY_CAMERA not in trained:
+            return models
+        target = str(data.camera)
+        model, _, facts = train_any_camera(
+            training, read, options, exclude=(target,), copies=self.copies, progress=progress, log=log
         )
+        models.models[ANY_CAMERA + TRAINED_SUFFIX] = [model.bind(world.camera)]
+        notes = list(models.training_notes or [])
+        notes.append(
+            f"{ANY_CAMERA} trained on {facts['images']} images of {', '.join(f.label for f in training)} "
+            f"({', '.join(facts['cameras_seen'])}) and {facts['entries'] - facts['images']} copies through "
+            f"{len(facts['augmentation']['cameras'])} other cameras, bound to {target}'s curves, "
+            f"in {facts['seconds']:.1f} s"
+        )
+        return FolderModels(models.models, training_notes=notes)
 
 
 class TrainOn(AbstractProtocol):

@@ -163,7 +163,10 @@ def method_model(method: str, world: World) -> AbstractEstimator:
     """
     from ccjax.runs import store
 
-    return store.load_model(method) if method.endswith(MODEL_SUFFIX) else store.fit(method, world)
+    if not method.endswith(MODEL_SUFFIX):
+        return store.fit(method, world)
+    conditioned = store.trained_record(method).get("conditioned") is True
+    return store.load_model(method, camera=world.camera.name if conditioned else None)
 
 
 @dataclass

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ccjax.evaluation.any_camera import refuse_unbound
 from ccjax.evaluation.folders import (
     MODEL_SUFFIX,
     TRAINED_SUFFIX,
@@ -342,7 +343,7 @@ def check_model_cameras(methods: Sequence[str], folders: Sequence[FolderSet]) ->
             continue
         if not pathlib.Path(method).is_file():
             raise ValueError(f"methods: no such model file: {method}")
-        camera = read_model_metadata(pathlib.Path(method)).get("camera")
+        camera = refuse_unbound(method, read_model_metadata(pathlib.Path(method)), folders)
         for folder in folders:
             if folder.camera is not None and camera is not None and folder.camera != camera:
                 raise ValueError(
@@ -425,8 +426,7 @@ def evaluate(
         :class:`SetsEvaluation`: one row set per scored folder, the geometric means.
 
     Raises:
-        ValueError: no folder, two folders with one name, or what a folder's evaluation refuses
-            (prefixed with the folder).
+        ValueError: no folder, two folders with one name, or a folder's evaluation's refusal (prefixed with it).
     """
     from ccjax.runs import store
 

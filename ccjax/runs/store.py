@@ -228,25 +228,44 @@ def trained_record(path: str | os.PathLike) -> dict[str, Any]:
     return metadata
 
 
-def load_model(path: str | os.PathLike) -> AbstractEstimator:
+def load_model(path: str | os.PathLike, camera: str | None = None) -> AbstractEstimator:
     """Read a model written by :func:`save_trained` (format :data:`ccjax._cache.FORMAT_VERSION`):
     its skeleton is the label fitted to the recorded camera's default world, its leaves the file's.
 
+    A camera-conditioned model (record ``conditioned: true``, ``ccjax train --method any-camera``)
+    is bound to ``camera`` at load: its map into the model's space from the camera's curves
+    (:meth:`ccjax.estimators.conditioned.AnyCamera.bind`).
+
     Arguments:
         path: the model file (as written by :func:`save_trained`, e.g. by ``ccjax train --out``).
+        camera: the camera of the images a conditioned model will be given (required for one,
+            not used by the others: their record names their camera).
 
     Returns:
         The trained estimator: the recorded method label fitted to ``World.default(camera,
         seed=world_seed)`` from the file's record (``World.default``'s camera when the record names
-        none), with every array leaf replaced by the file's.
+        none), with every array leaf replaced by the file's; a conditioned one bound to ``camera``.
 
     Raises:
-        ValueError: not a trained-model file, another format version, or leaves that do not fit.
+        ValueError: not a trained-model file, another format version, leaves that do not fit, or a
+            conditioned model without ``camera``.
     """
     path = Path(path)
     metadata = trained_record(path)
+    if metadata.get("conditioned") is True and camera is None:
+        raise ValueError(
+            f"camera: the model {path} is camera-conditioned (any-camera): name the camera of the images (--camera)"
+        )
     skeleton = fit(metadata["label"], world("default", metadata.get("camera"), seed=metadata.get("world_seed", 0)))
-    return load_leaves(path, skeleton)
+    model = load_leaves(path, skeleton)
+    if metadata.get("conditioned") is True:
+        from ccjax.camera import Camera
+        from ccjax.estimators.conditioned import AnyCamera
+
+        if not isinstance(model, AnyCamera):
+            raise ValueError(f"model: {path} records conditioned: true but holds a {type(model).__name__}")
+        return model.bind(Camera.from_name(str(camera)))
+    return model
 
 
 def clear_memory() -> None:

@@ -127,14 +127,17 @@ def paired_responses(
 
     def render(camera: Camera) -> np.ndarray:
         lit_sensors = lights[:, :, None] * np.asarray(camera.sensors, np.float64)[None]  # (L, 101, 3)
-        return np.einsum("sw,lwc->lsc", reflectances, lit_sensors)
+        # One BLAS product (S, 101) x (101, 3L); einsum's loop took 0.2-1 s a camera.
+        flat = reflectances @ np.moveaxis(lit_sensors, 1, 0).reshape(lit_sensors.shape[1], -1)
+        return np.moveaxis(flat.reshape(reflectances.shape[0], lights.shape[0], 3), 1, 0)
 
     return render(source), render(target)
 
 
 def _normal_equations(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``A^T A`` and ``A^T B`` over the last two axes (``(..., 3, 3)`` each)."""
-    return np.einsum("...si,...sj->...ij", source, source), np.einsum("...si,...sj->...ij", source, target)
+    transposed = np.swapaxes(source, -1, -2)
+    return transposed @ source, transposed @ target
 
 
 def _solve(gram: np.ndarray, cross: np.ndarray) -> np.ndarray:
