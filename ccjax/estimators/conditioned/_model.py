@@ -50,7 +50,14 @@ class AnyCamera(AbstractImageEstimator):
     padding: ClassVar[Padding] = NO_PADDING_BRANCH
 
     def block_size(self, backend: str) -> int | None:
-        """The backend's block (:func:`ccjax.backends.block_scenes`), as FFCC's."""
+        """The backend's block (:func:`ccjax.backends.block_scenes`), as FFCC's.
+
+        Arguments:
+            backend: ``"cpu"``, ``"gpu"`` or ``"tpu"``.
+
+        Returns:
+            Images per vmapped block.
+        """
         return block_scenes(backend)
 
     def bind(self, camera: Camera) -> AnyCamera:
