@@ -259,7 +259,6 @@ def run_train(args) -> int:
 def run_train_for_camera(args) -> int:
     """``ccjax train DIR [DIR ...] --target-camera C``: a model for a camera none of the folders was
     taken with (:func:`ccjax.evaluation.train_for_camera`)."""
-    import json
     from pathlib import Path
 
     from ccjax import evaluation
@@ -317,18 +316,18 @@ def run_train_for_camera(args) -> int:
     if args.out:
         from ccjax.runs import store
 
-        store.save_trained(
-            args.out,
-            model,
-            label=args.method,
-            camera=args.target_camera,
-            world_seed=args.seed,
-            record=record,
-            overwrite=args.overwrite,
-        )
-        print(f"saved {args.out}")
-    else:
+        return save_or_print(args, model, args.method, args.target_camera, record, store.save_trained)
+    return save_or_print(args, model, args.method, args.target_camera, record, None)
+
+
+def save_or_print(args, model, label: str, camera: str | None, record: dict, save) -> int:
+    """A trained model written to ``--out`` with its record (``save``: the store's writer), or,
+    without ``--out`` (``save`` None), its record printed as JSON; the command's exit status."""
+    if save is None:
         print(json.dumps(record, indent=1))
+        return 0
+    save(args.out, model, label=label, camera=camera, world_seed=args.seed, record=record, overwrite=args.overwrite)
+    print(f"saved {args.out}")
     return 0
 
 
@@ -474,19 +473,8 @@ def run_train_any_camera(args) -> int:
 
         record = {**record, "procedure": "FFCC in the reference space: L-BFGS", "losses": log.losses}
         record.pop("camera")
-        store.save_trained(
-            args.out,
-            model,
-            label="any-camera",
-            camera=None,
-            world_seed=args.seed,
-            record=record,
-            overwrite=args.overwrite,
-        )
-        print(f"saved {args.out}")
-    else:
-        print(json.dumps(record, indent=1))
-    return 0
+        return save_or_print(args, model, "any-camera", None, record, store.save_trained)
+    return save_or_print(args, model, "any-camera", None, record, None)
 
 
 COMMANDS = [add_train, add_train_net]
