@@ -53,10 +53,13 @@ GAMUT_FAMILIES = ("ccjax.estimators.gamut", "ccjax.estimators.gamut.cip")
 
 
 def _param(label: str):
-    """Gamut-mapping kernels take 15-60 s each to compile: their registry examples run by default,
-    their other labels (same kernels, other selectors and constraint sets) are marked slow."""
+    """Gamut-mapping kernels take 10-20 s each to compile: their registry examples run by default,
+    their other labels (same kernels, other selectors and constraint sets) are marked slow, and the
+    SCWIA weights other than 12 (the same program with another exponent) are marked manual."""
     entry, _ = registry.lookup(label)
     heavy = entry.build.__module__.startswith(GAMUT_FAMILIES) and label != entry.example
+    if heavy and "-SCWIA-" in label and not label.endswith("-SCWIA-12"):
+        return pytest.param(label, marks=pytest.mark.manual)
     return pytest.param(label, marks=pytest.mark.slow) if heavy else label
 
 

@@ -138,10 +138,11 @@ SLOW_PAGES = {
     "docs/getting-started.md": 32,
     "docs/photographs.md": 44,
     "docs/camera-without-labels.md": 30,
+    "docs/training-loop.md": 27,
 }
 """Pages whose blocks take long (seconds measured on 2 shared CPU cores): the README's tour and a
 sweep of 1,000 scenes; FFCC trained on 16 images; two cameras' worlds, maps and a leave-one-camera-out
-run. They run with the slow suite."""
+run; a training loop compiled for several models. They run with the slow suite."""
 
 PAGES = [
     pytest.param(page, marks=pytest.mark.slow) if page in SLOW_PAGES else page

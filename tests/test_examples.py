@@ -155,7 +155,7 @@ def test_calibrate_synthetic_quick():
     assert "RMS relative error" in out and "pseudo-inverse" in out
 
 
-@pytest.mark.slow
+@pytest.mark.manual  # about 160 s on 2 cores; --quick runs by default
 def test_camera_sweep_full():
     # Every embedded camera, 2000 scenes, both looped methods (C-by-C-MMSE, ECRULE-MV).
     rows = camera_medians(run_example("camera_sweep.py", timeout=1500), 7)
@@ -172,11 +172,11 @@ def test_sharded_sweep_full():
     assert "agree" in out and "DISAGREE" not in out
 
 
-@pytest.mark.slow
+@pytest.mark.manual  # about 80 s on 2 cores; --quick is in the slow suite
 def test_learn_correlation_full():
     check_learn_correlation(run_example("learn_correlation.py", timeout=1500), ("ECRULE-MV", "ND-ECRULE-SCWIA-12"))
 
 
-@pytest.mark.slow
+@pytest.mark.manual  # about 50 s on 2 cores; --quick is in the slow suite
 def test_learned_sharpening_full():
     check_learned_sharpening(run_example("learned_sharpening.py", "--world", "default", timeout=1500))

@@ -333,7 +333,7 @@ def test_ctrl_c_in_a_process_has_no_traceback(tmp_path):
 # fork server (tests/fork_server.py) that imported the command line once.
 
 KILL_TRIALS = 50
-"""Trials per signal in the slow test; the default suite runs QUICK_KILL_TRIALS."""
+"""Trials per signal in the manual test; the slow suite runs QUICK_KILL_TRIALS."""
 
 QUICK_KILL_TRIALS = 4
 
@@ -460,7 +460,7 @@ def test_kill_while_correct_writes_leaves_no_partial_file(tmp_path):
     assert counts["sigint_130"] >= 1  # some SIGINTs came while the command ran
 
 
-@pytest.mark.slow
+@pytest.mark.manual  # about 180 s on 2 cores; the slow suite runs the same check with 4 trials
 def test_kill_while_correct_writes_50_trials_each(tmp_path):
     counts = _run_kill_trials(tmp_path, KILL_TRIALS, seed=1)
     print(counts)

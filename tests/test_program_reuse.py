@@ -42,3 +42,19 @@ def test_four_sweeps_compile_no_program_twice(default_world):
         for methods in SWEEPS:
             experiments.sweep(default_world, list(methods), SURFACES, 56, key, progress=False)
     assert log.programs == 0
+
+
+def test_the_process_keeps_a_bounded_number_of_programs(default_world, monkeypatch):
+    # Kept to two programs (a model's estimate program and the shared statistics program): a
+    # second model's program pushes the least recently used one out instead of growing the table.
+    from ccjax.runs import engine
+
+    monkeypatch.setattr(engine, "PROGRAMS_KEPT", 2)
+    key = jax.random.key(55)
+    for label in ("GW", "RETINEX", "DB-GW"):
+        store.fit(label, default_world)
+        experiments.sweep(default_world, [label], (4,), 56, key, progress=False)
+        assert engine.held_programs() <= 2, label
+    with CompileLog() as log:  # the last model and the statistics: still held, nothing to build
+        experiments.sweep(default_world, ["DB-GW"], (4,), 56, key, progress=False)
+    assert log.programs == 0

@@ -13,6 +13,7 @@ threads ahead of the chunks that need them (:func:`run_streams`).
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures
 import math
 import threading
@@ -286,9 +287,15 @@ def _signature(tree) -> Hashable:
     return treedef, tuple(leaf_key(leaf) for leaf in leaves)
 
 
-_PROGRAMS: dict[Hashable, concurrent.futures.Future] = {}
+PROGRAMS_KEPT = 128
+"""How many compiled programs a process keeps: a long session (a notebook sweeping many shapes,
+the test suite) would otherwise hold every executable it ever built; the least recently used
+finished program goes first, and the persistent compilation cache still serves it again."""
+
+_PROGRAMS: collections.OrderedDict[Hashable, concurrent.futures.Future] = collections.OrderedDict()
 """The compiled programs of this process (estimate and statistics), by :func:`_signature` of
-their arguments: a run reuses what any earlier run in the process compiled."""
+their arguments, least recently used first: a run reuses what any earlier run in the process
+compiled."""
 
 _PROGRAMS_LOCK = threading.Lock()
 
@@ -301,6 +308,9 @@ def _compiled(key: Hashable, build: Callable[[], Callable]) -> Callable:
         owner = future is None
         if owner:
             future = _PROGRAMS[key] = concurrent.futures.Future()
+            _forget_oldest()
+        else:
+            _PROGRAMS.move_to_end(key)
     assert future is not None
     if owner:
         try:
@@ -311,6 +321,25 @@ def _compiled(key: Hashable, build: Callable[[], Callable]) -> Callable:
             future.set_exception(error)
             raise
     return future.result()
+
+
+def held_programs() -> int:
+    """How many compiled programs this process holds (at most :data:`PROGRAMS_KEPT` finished ones,
+    plus any being built).
+
+    Returns:
+        The number of entries in the process's program table.
+    """
+    with _PROGRAMS_LOCK:
+        return len(_PROGRAMS)
+
+
+def _forget_oldest() -> None:
+    """Drops the least recently used finished programs beyond :data:`PROGRAMS_KEPT` (one still
+    being built stays: a thread waits on it). Called with the lock held."""
+    excess = len(_PROGRAMS) - PROGRAMS_KEPT
+    for key in [key for key, future in _PROGRAMS.items() if future.done()][: max(excess, 0)]:
+        del _PROGRAMS[key]
 
 
 def compile_order(models: Sequence[AbstractEstimator], positions: Sequence[int]) -> list[int | None]:
