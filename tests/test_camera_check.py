@@ -188,7 +188,7 @@ def test_planckian_truths_of_every_embedded_camera_lie_on_its_locus():
         assert distance.max() < 5e-5, (name, distance.max())
 
 
-@pytest.mark.slow
+@pytest.mark.manual  # about 60 s on 2 cores (every embedded camera)
 def test_rendered_truths_pass_for_every_embedded_camera():
     """The calibration's requirement (``CURVE_THRESHOLD``): the default world's training and test
     lights, and the seed-7 world's test lights, rendered through each embedded camera's curves

@@ -112,7 +112,7 @@ def test_synthetic_raw_evaluation_quick():
     assert len(rows) == 2 and all(0 < row[0] < 30 for row in rows)
 
 
-@pytest.mark.slow  # over 30 s on 2 cores: the default run stays under 10 minutes
+@pytest.mark.manual  # about 125 s on 2 cores; FFCC trained on synthetic scenes is tested in the slow suite
 def test_ffcc_quick():
     out = run_example("ffcc_quick.py", "--quick")
     assert "wrote 120 images of 32x32" in out

@@ -147,12 +147,16 @@ def test_bad_input_errors():
 
 
 def _differentiable_examples():
+    """Every differentiable example, slow; the soft gamut kernel's (about 70 s on 2 cores, its
+    gradients checked on small batches by the gamut tests) manual."""
     from ccjax.estimators import registry
 
-    return [entry.example for entry in registry.available() if entry.differentiable]
+    labels = [entry.example for entry in registry.available() if entry.differentiable]
+    return [
+        pytest.param(label, marks=pytest.mark.manual if "ECRULE" in label else pytest.mark.slow) for label in labels
+    ]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("label", _differentiable_examples())
 def test_grad_through_vmapped_model_on_1000_scenes(label, default_world):
     """jax.grad of the angular loss through vmap(model) with respect to the

@@ -36,7 +36,7 @@ def test_masking_hides_times_and_only_times():
     )
 
 
-@pytest.mark.slow  # six commands in fresh processes, FFCC trained once: about 2.5 minutes on 2 shared cores
+@pytest.mark.manual  # six commands in fresh processes, FFCC trained once: about 85 s on 2 cores
 def test_the_committed_session_is_what_the_commands_print(tmp_path):
     script = _script()
     out = tmp_path / "session.md"

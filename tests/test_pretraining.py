@@ -152,7 +152,7 @@ def test_pretraining_helps_ffcc_with_few_photographs(default_world):
     assert np.median(errors["tuned"]) < 0.5 * np.median(grey)
 
 
-@pytest.mark.slow
+@pytest.mark.manual  # about 90 s on 2 cores; pretraining and fine-tuning are tested in the slow suite
 def test_evaluate_train_pretrains_then_fine_tunes_in_every_fold(tmp_path, monkeypatch, capsys):
     """``ccjax evaluate --train FFCC --pretrain-camera``: FFCC is pretrained once on rendered
     images, and every fold's fit is a fine-tune of that model (its prior)."""
