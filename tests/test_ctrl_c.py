@@ -229,3 +229,28 @@ def test_other_unraisable_errors_go_to_the_default_hook(capsys, monkeypatch):
     monkeypatch.setattr(sys, "unraisablehook", cli.redeliver_interrupts)
     Broken()  # collected at once; its error can only be reported
     assert "from a __del__" in capsys.readouterr().err
+
+
+def test_a_late_copy_of_the_interrupt_while_stopping_still_gives_130(monkeypatch, capsys):
+    # A redelivered Ctrl-C can land while main is already stopping on the first one (before it has
+    # printed its line): main still prints one line and gives 130, it does not raise.
+    def interrupted_import(*names):
+        raise KeyboardInterrupt
+
+    calls = []
+    real_prefix = cli.prefix
+
+    def prefix_interrupted_once(command):
+        calls.append(command)
+        if len(calls) == 1:
+            raise KeyboardInterrupt  # the late copy, landing in the stopping code
+        return real_prefix(command)
+
+    monkeypatch.setattr(cli, "import_holding_interrupts", interrupted_import)
+    monkeypatch.setattr(cli, "prefix", prefix_interrupted_once)
+    try:
+        code = cli.main(["methods"])
+    except KeyboardInterrupt:
+        pytest.fail("main let the late copy of the interrupt escape")
+    assert code == 130 and len(calls) == 2
+    assert capsys.readouterr().err.splitlines() == ["ccjax methods: interrupted"]

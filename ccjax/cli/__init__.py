@@ -249,6 +249,41 @@ def unexpected_error_line(command: str | None, error: Exception) -> str:
     )
 
 
+def _stop_on_interrupt(command: str | None, whole_process: bool) -> int:
+    """The end of a command stopped by Ctrl-C: late interrupts ignored first (when this is the
+    process's own command line, on the main thread), then one line, then 130 — or an immediate
+    exit when a worker thread would hold the interpreter's exit.
+
+    Arguments:
+        command: the command's name, for the line (``None`` before the arguments were read).
+        whole_process: ``main`` runs the process (``argv`` not given), so the process may ignore
+            SIGINT from now on and exit at once.
+
+    Returns:
+        130 (128 + SIGINT).
+    """
+    process = whole_process and threading.current_thread() is threading.main_thread()
+    if process:
+        # The process is stopping on this interrupt: a late one (a redelivery in flight, a second
+        # Ctrl-C) must not turn the exit into death by SIGINT. Ignored before anything else, so
+        # that one landing here is the last (main retries this function once it has).
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for timer in _REDELIVERIES:
+        timer.cancel()
+    print(f"{prefix(command)}: interrupted", file=sys.stderr)
+    if process:
+        workers = [thread for thread in threading.enumerate() if thread is not threading.main_thread()]
+        if any(thread.is_alive() and not thread.daemon for thread in workers):
+            # A worker thread still busy (a sweep compiling programs ahead) would hold the
+            # interpreter's exit until it finished, up to the length of a compilation: stop now,
+            # as Ctrl-C should (every file ccjax writes is written atomically).
+            for stream in (sys.stdout, sys.stderr):
+                with contextlib.suppress(OSError, ValueError):
+                    stream.flush()
+            os._exit(130)
+    return 130
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``ccjax`` with ``argv`` (default: the process arguments).
 
@@ -275,21 +310,13 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except BaseException as error:
         if interrupted(error):
-            print(f"{prefix(command)}: interrupted", file=sys.stderr)
-            if argv is None and threading.current_thread() is threading.main_thread():
-                # The process is stopping on this interrupt: a late one (a redelivery in flight, a
-                # second Ctrl-C) must not turn the exit into death by SIGINT.
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
-                workers = [thread for thread in threading.enumerate() if thread is not threading.main_thread()]
-                if any(thread.is_alive() and not thread.daemon for thread in workers):
-                    # A worker thread still busy (a sweep compiling programs ahead) would hold the
-                    # interpreter's exit until it finished, up to the length of a compilation:
-                    # stop now, as Ctrl-C should (every file ccjax writes is written atomically).
-                    for stream in (sys.stdout, sys.stderr):
-                        with contextlib.suppress(OSError, ValueError):
-                            stream.flush()
-                    os._exit(130)
-            return 130
+            while True:
+                try:
+                    return _stop_on_interrupt(command, whole_process=argv is None)
+                except KeyboardInterrupt:
+                    # A late copy of this Ctrl-C (a redelivery in flight) landed before late ones
+                    # were ignored: it is the same interrupt, so stop once, not die by SIGINT.
+                    continue
         if isinstance(error, BrokenPipeError):
             # The reader closed the pipe (``ccjax cameras | head``): stop quietly, as Unix tools do;
             # stdout goes to devnull so the interpreter's final flush does not raise again.
