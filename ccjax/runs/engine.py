@@ -338,7 +338,9 @@ def _forget_oldest() -> None:
     """Drops the least recently used finished programs beyond :data:`PROGRAMS_KEPT` (one still
     being built stays: a thread waits on it). Called with the lock held."""
     excess = len(_PROGRAMS) - PROGRAMS_KEPT
-    for key in [key for key, future in _PROGRAMS.items() if future.done()][: max(excess, 0)]:
+    if excess <= 0:
+        return
+    for key in [key for key, future in _PROGRAMS.items() if future.done()][:excess]:
         del _PROGRAMS[key]
 
 
