@@ -185,3 +185,33 @@ def test_the_commands_train_once_and_bind_the_camera_named(small_world_commands,
     rgb = np.asarray(bound(jnp.asarray(photo.rgb), ~jnp.asarray(photo.clipped)).illuminant)
     found = np.asarray(printed[0]["illuminant"] if isinstance(printed, list) else printed["illuminant"])
     np.testing.assert_allclose(found / found.sum(), rgb / rgb.sum(), rtol=1e-5)
+
+
+def test_the_window_holds_every_plausible_light_whatever_the_training_cameras_saw():
+    """Trained on lights of 5000-6000 K only, the model's histogram still holds a sodium lamp's
+    white (CIE HP1, through the reference camera's curves, integrated here) and every light of
+    the bank: none wraps onto the far side of the torus."""
+    import colour
+
+    rng = np.random.default_rng(3)
+    sensors = np.asarray(Camera.from_name(TRAIN[0]).sensors, np.float64)
+    reflectances = np.asarray(data.sfu_reflectances().values, np.float64)
+    lights = np.stack([planck(t) for t in rng.uniform(5000.0, 6000.0, 8)])
+    rgb = (reflectances[rng.integers(0, len(reflectances), (8, 16))] * lights[:, None]) @ sensors
+    images = np.repeat(np.repeat((rgb / rgb.max() * 0.8).reshape(8, 4, 4, 3), 2, axis=1), 2, axis=2)
+    no_iterations = ffcc.Hyperparameters(pretrain_iterations=0, iterations=0)
+    matrices = np.repeat(conditioned.reference_matrix(Camera.from_name(TRAIN[0]))[None], 8, axis=0)
+    model, _ = conditioned.train(
+        images.astype(np.float32),
+        np.ones((8, 8, 8), bool),
+        (lights @ sensors).astype(np.float32),
+        matrices,
+        no_iterations,
+    )
+    sodium = colour.SDS_ILLUMINANTS["HP1"]
+    grid = np.arange(380.0, 781.0, 4.0)
+    spectrum = np.interp(grid, np.asarray(sodium.wavelengths), np.asarray(sodium.values))
+    whites = np.concatenate([conditioned.window_lights(), (spectrum @ conditioned.reference_sensors())[None]])
+    uv = np.stack([np.log(whites[:, 1] / whites[:, 0]), np.log(whites[:, 1] / whites[:, 2])], axis=1)
+    bins = (uv - np.asarray(model.core.origin, np.float64)) / float(model.core.bin_size)
+    assert np.all(bins >= 0) and np.all(bins < model.core.bins)

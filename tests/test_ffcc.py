@@ -275,3 +275,33 @@ def test_training_sets_are_padded_to_few_sizes_and_small_ones_stay_small():
     assert {count: padded_count(count) for count in expected} == expected
     sizes = {padded_count(count) for count in range(1, 2049)}
     assert len(sizes) == 5 + 15  # 8, 16, 32, 64, 128 and 256 ... 2048
+
+
+def test_a_window_of_lights_sets_the_grid_so_that_each_of_them_lies_inside_the_torus():
+    """``window``: lights outside the training lights' range get a grid that holds them without
+    wrapping (bin size doubled until the union fills at most 3/4 of the width, centred on it); the
+    grid of the training lights alone wraps them. Checked in log-chroma by hand, not by the
+    trainer's helpers."""
+    images, masks, lights = _synthetic_scenes(13, 8)
+    # Far from the training lights: a deep red and a deep blue light.
+    window = np.array([[1.0, 0.25, 0.08], [0.3, 0.8, 1.0]], np.float32)
+    no_iterations = Hyperparameters(pretrain_iterations=0, iterations=0)
+    plain, _ = train(init_ffcc(), images, masks, lights, no_iterations)
+    wide, _ = train(init_ffcc(), images, masks, lights, no_iterations, window=window)
+
+    def uv(rgb):
+        rgb = np.asarray(rgb, np.float64)
+        return np.stack([np.log(rgb[:, 1] / rgb[:, 0]), np.log(rgb[:, 1] / rgb[:, 2])], axis=1)
+
+    held = np.concatenate([uv(lights), uv(window)])
+    span = held.max(axis=0) - held.min(axis=0)
+    size = 1 / 32
+    while span.max() > 0.75 * 64 * size:
+        size *= 2
+    assert float(wide.bin_size) == size > float(plain.bin_size)
+    bins = (held - np.asarray(wide.origin, np.float64)) / float(wide.bin_size)
+    assert np.all(bins >= 0) and np.all(bins < 64)
+    outside = (uv(window) - np.asarray(plain.origin, np.float64)) / float(plain.bin_size)
+    assert np.any((outside < 0) | (outside >= 64))
+    with pytest.raises(ValueError, match="window"):
+        train(init_ffcc(), images, masks, lights, no_iterations, window=-window)

@@ -5,7 +5,8 @@ Every camera is expressed in one camera-independent space through its curves
 (:mod:`._space`: a 3x3 to a fixed reference camera, the mean of the embedded cameras' curves,
 fitted on the SFU reflectances under a bank of Planckian, daylight, fluorescent and LED lights);
 one FFCC model (log-chroma histograms of pixels and edges, learned filters and bias) is trained in
-that space on every training image mapped there by its own camera's map (:mod:`._fitting`); at
+that space on every training image mapped there by its own camera's map, its histogram's window
+set on every plausible light (:func:`window_lights`), not only the training cameras' (:mod:`._fitting`); at
 inference the camera's image is mapped in, the light estimated and mapped back (:mod:`._model`).
 The camera's *fingerprint* (its whites under the bank) names its twins, which leave-one-camera-out
 keeps out of a fold. Camera augmentation (each training image also mapped into other cameras,
@@ -25,6 +26,7 @@ from ccjax.estimators.conditioned._space import (
     reference_matrix,
     reference_sensors,
     twins,
+    window_lights,
 )
 from ccjax.estimators.registry import register
 
@@ -42,6 +44,7 @@ __all__ = [
     "to_reference",
     "train",
     "twins",
+    "window_lights",
 ]
 
 LABEL = "any-camera"

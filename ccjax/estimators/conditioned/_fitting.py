@@ -1,7 +1,9 @@
 """Training the any-camera estimator: every training image (of any camera) and its ground truth
 mapped into the reference camera's space by its own camera's map, and FFCC trained there once
 (:func:`ccjax.estimators.ffcc.train`, the reference code's hyperparameters: a choice among the
-settings by cross-validation costs seven fits on a pool of thousands of images)."""
+settings by cross-validation costs seven fits on a pool of thousands of images), its histogram's
+window set on the training lights and on every plausible light
+(:func:`~ccjax.estimators.conditioned.window_lights`)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.conditioned._model import AnyCamera
+from ccjax.estimators.conditioned._space import window_lights
 from ccjax.estimators.ffcc import BINS, Hyperparameters, TrainingRecord, init_ffcc
 from ccjax.estimators.ffcc import train as train_ffcc
 from ccjax.precision import matmul
@@ -78,6 +81,7 @@ def train(
     *,
     bins: int = BINS,
     index: np.ndarray | None = None,
+    window: Float[Array | np.ndarray, "M 3"] | None = None,
 ) -> tuple[AnyCamera, TrainingRecord]:
     """Train the any-camera estimator on images of several cameras (module docstring).
 
@@ -90,6 +94,10 @@ def train(
         hyperparameters: FFCC's settings (default: :class:`~ccjax.estimators.ffcc.Hyperparameters`).
         bins: the histogram's bins per axis (even).
         index: ``(K,)`` the image of each entry (:func:`to_reference`; default: one per image).
+        window: ``(M, 3)`` reference-space lights the histogram must hold besides the training
+            lights (:func:`ccjax.estimators.ffcc.train`; None: :func:`window_lights`, every light
+            of the bank and the discharge lamps, so that a camera whose lights lie beyond the
+            training cameras' does not see them wrap).
 
     Returns:
         ``(unbound AnyCamera, TrainingRecord)``.
@@ -104,7 +112,9 @@ def train(
     mapped, usable, reference_lights = to_reference(images, masks, lights, matrices, index)
     if not bool(np.all(reference_lights > 0)):
         raise ValueError("matrices: a training light leaves the positive octant in the reference space")
-    core, record = train_ffcc(init_ffcc(bins), mapped, usable, reference_lights, hyperparameters or Hyperparameters())
+    settings = hyperparameters or Hyperparameters()
+    held = window_lights() if window is None else window
+    core, record = train_ffcc(init_ffcc(bins), mapped, usable, reference_lights, settings, window=held)
     del mapped
     model = AnyCamera(core=core, matrix=jnp.eye(3, dtype=core.bias.dtype))
     jax.block_until_ready(model)

@@ -34,6 +34,7 @@ __all__ = [
     "reference_matrix",
     "reference_sensors",
     "twins",
+    "window_lights",
 ]
 
 TWIN_DEGREES = 0.5
@@ -63,6 +64,31 @@ def light_bank() -> np.ndarray:
     )
     bank = np.concatenate(spectra).astype(np.float64)
     return bank / bank.mean(axis=1, keepdims=True)
+
+
+@functools.cache
+def window_lights() -> np.ndarray:
+    """Every light the any-camera model's histogram must hold, in the reference camera: its whites
+    under :func:`light_bank` and under the CIE high-pressure discharge lamps HP1-HP5 (sodium and
+    metal halide, CIE 15:2018 Table 11; street and stadium lighting, far above the Planckian
+    locus). A model trained on a few cameras' photographs sets its histogram's window on their
+    lights; a camera's light outside that window wraps onto the far side of the torus and is
+    estimated tens of degrees away (FFCC §3), so the window is set on these as well.
+
+    Returns:
+        ``(L + 5, 3)`` float64 whites, each of unit sum.
+    """
+    import colour  # imported here: colour-science is slow to import
+
+    named = colour.SDS_ILLUMINANTS
+    lamps = np.stack(
+        [
+            resample(np.asarray(named[n].wavelengths), np.asarray(named[n].values), kind="light")
+            for n in ("HP1", "HP2", "HP3", "HP4", "HP5")
+        ]
+    )
+    whites = np.concatenate([light_bank(), lamps / lamps.mean(axis=1, keepdims=True)]) @ reference_sensors()
+    return whites / whites.sum(axis=1, keepdims=True)
 
 
 @functools.cache

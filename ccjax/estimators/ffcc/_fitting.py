@@ -328,6 +328,8 @@ def train(
     illuminants: Float[Array | np.ndarray, "N 3"],
     hyperparameters: Hyperparameters = Hyperparameters(),
     prior: FFCC | None = None,
+    *,
+    window: Float[Array | np.ndarray, "M 3"] | None = None,
 ) -> tuple[FFCC, TrainingRecord]:
     """Train FFCC on images with ground truth (module docstring).
 
@@ -348,6 +350,11 @@ def train(
         illuminants: ``(N, 3)`` the true lights (camera RGB, any scale, every channel positive).
         hyperparameters: the :class:`Hyperparameters`.
         prior: a trained FFCC of ``model``'s bin count to fine-tune (None: train from zero).
+        window: ``(M, 3)`` lights the histogram must hold besides the training lights (every
+            channel positive): the grid's bin size and origin are fitted to both, so a light
+            outside the training set's range but in ``window`` does not wrap onto the far side of
+            the torus (a model that will see other cameras' lights; None: the training lights
+            alone, the reference code's choice). Ignored with ``prior``, whose bin size is kept.
 
     Returns:
         ``(trained FFCC, TrainingRecord)``.
@@ -367,9 +374,15 @@ def train(
     if prior is not None and prior.bins != n:
         raise ValueError(f"prior: expected a model of {n} bins (the model's), got {prior.bins}")
     truth_uv = log_chroma(illuminants)
+    held = truth_uv
+    if window is not None:
+        window = jnp.asarray(window, truth_uv.dtype)
+        if window.ndim != 2 or window.shape[-1] != 3 or not bool(jnp.all(window > 0)):
+            raise ValueError(f"window: expected (M, 3) lights with every channel positive, got shape {window.shape}")
+        held = jnp.concatenate([truth_uv, log_chroma(window)])
     grid = float(model.bin_size) if prior is None else float(prior.bin_size)
-    size = jnp.asarray(grid if prior is not None else fit_grid(truth_uv, n, grid), model.bias.dtype)
-    origin = fit_origin(truth_uv, n, size).astype(model.bias.dtype)
+    size = jnp.asarray(grid if prior is not None else fit_grid(held, n, grid), model.bias.dtype)
+    origin = fit_origin(held, n, size).astype(model.bias.dtype)
     model = eqx.tree_at(lambda m: (m.origin, m.bin_size), model, (origin, size))
     histogram_fft = jnp.fft.rfft2(histograms(model, jnp.asarray(images), jnp.asarray(masks)))
     truth = (truth_uv - origin) / size
