@@ -80,11 +80,11 @@ def main(argv: list[str] | None = None) -> int:
     for label, loss in (("GW", "mapping"), (args.nonlinear, "angular")):
         learned = sharpening.learned_sharpening(world, label, loss, steps=args.steps)
         window = max(1, min(20, args.steps // 4))  # the first and last windows never overlap
-        head, tail = np.mean(learned.losses[:window]), np.mean(learned.losses[-window:])
+        head, tail = np.mean(learned.rms_errors[:window]), np.mean(learned.rms_errors[-window:])
         before, after = objective_before_after(world, label, loss, learned.transform)
         print(
             f"{label}: learned on {loss} in {learned.seconds:.0f} s; "
-            f"training loss (mean of first/last {window} steps) {head:.3f} -> {tail:.3f}; "
+            f"training RMS error (mean of first/last {window} steps) {head:.3f} -> {tail:.3f}; "
             f"on a fixed batch of 2048 training scenes: T = I {before:.3f} -> learned {after:.3f}"
         )
         print(f"  learned T = {np.round(learned.transform, 4).tolist()}")

@@ -347,6 +347,15 @@ def test_learning_signal_through_grey_world(small_world):
     assert float(jnp.linalg.norm(angular_grad)) < 1e-3 * float(jnp.linalg.norm(mapping_grad))
 
 
+def test_learned_sharpenings_losses_is_a_deprecated_alias_of_its_rms_errors(small_world):
+    """``losses`` (the old name of an RMS, where ccjax's other ``losses`` are objectives or means)
+    warns and returns ``rms_errors``: one finite, non-negative value per step."""
+    learned = sh.learned_sharpening(small_world, "GW", steps=2, batch_size=2, n_surfaces=5)
+    assert len(learned.rms_errors) == 2 and all(np.isfinite(learned.rms_errors)) and min(learned.rms_errors) >= 0
+    with pytest.warns(DeprecationWarning, match="rms_errors"):
+        assert learned.losses == learned.rms_errors
+
+
 def test_learned_sharpening_compiles_once_per_shape(small_world, caplog):
     """The training step is compiled once per shape: calls with other step counts and rates trace
     nothing (the count is the loop's length: a shorter run is the longer one's beginning); an
@@ -358,13 +367,13 @@ def test_learned_sharpening_compiles_once_per_shape(small_world, caplog):
     shorter = sh.learned_sharpening(small_world, "GW", steps=2, learning_rate=3e-3, **options)
     faster = sh.learned_sharpening(small_world, "GW", steps=2, learning_rate=3e-2, **options)
     assert count_traces(caplog, "_sharpening_step") == 1
-    assert shorter.losses == longer.losses[:2]
-    assert faster.losses[0] == longer.losses[0] and faster.losses[1] != longer.losses[1]  # T = I, then the rate
+    assert shorter.rms_errors == longer.rms_errors[:2]
+    assert faster.rms_errors[0] == longer.rms_errors[0] and faster.rms_errors[1] != longer.rms_errors[1]  # T = I first
     adam = optax.adam(3e-3)
     with_optax = sh.learned_sharpening(small_world, "GW", steps=4, optimizer=adam, **options)
     sh.learned_sharpening(small_world, "GW", steps=1, optimizer=adam, **options)
     assert count_traces(caplog, "_sharpening_step") == 2
-    np.testing.assert_allclose(with_optax.losses, longer.losses, rtol=1e-5)
+    np.testing.assert_allclose(with_optax.rms_errors, longer.rms_errors, rtol=1e-5)
     np.testing.assert_allclose(with_optax.transform, longer.transform, rtol=1e-5, atol=1e-6)
     assert not np.allclose(longer.transform, np.eye(3), atol=1e-3)  # it did move
     with pytest.raises(ValueError, match="learning_rate"):

@@ -9,6 +9,7 @@ shades of grey) learn from either.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -44,16 +45,33 @@ class LearnedSharpening:
         transform: ``(3, 3)`` NumPy ``T`` with unit columns (the gauge of Barnard 1999 §5.2).
         estimator: the registry label trained through.
         loss: ``"mapping"`` or ``"angular"``.
-        losses: training loss per step, RMS over the batch (thesis units for the mapping loss,
-            degrees for the angle).
+        rms_errors: per step, the root of the objective (the batch's mean square error): the
+            RMS over the batch of the mapping error (thesis units) or of the angle (degrees).
+            Not a mean error (:func:`ccjax.losses.angular_loss` is one).
         seconds: training time.
     """
 
     transform: np.ndarray
     estimator: str
     loss: str
-    losses: list
+    rms_errors: list
     seconds: float
+
+    @property
+    def losses(self) -> list:
+        """Deprecated alias of :attr:`rms_errors` (it warns, for one release): ccjax's other
+        ``losses`` are the minimised objective or a mean, and this is neither.
+
+        Returns:
+            :attr:`rms_errors`.
+        """
+        warnings.warn(
+            "LearnedSharpening.losses is deprecated: use rms_errors (per step, the RMS over the batch; "
+            "the objective is its square)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.rms_errors
 
 
 def scene_losses(
@@ -180,7 +198,7 @@ def learned_sharpening(
         learned = sharpening.learned_sharpening(
             world, "GW", steps=20, batch_size=16, optimizer=optax.adam(schedule)
         )
-        print(learned.transform.shape, len(learned.losses))  # (3, 3) 20
+        print(learned.transform.shape, len(learned.rms_errors))  # (3, 3) 20
 
     Arguments:
         world: training illuminants, reflectances, canonical light.
@@ -227,12 +245,12 @@ def learned_sharpening(
     for index in range(steps):  # dispatched asynchronously: no host round trip per step
         parameters, state, value = _sharpening_step(parameters, state, key, jnp.uint32(index), rate, problem, optimizer)
         values.append(value)
-    losses = np.sqrt(np.asarray(jnp.stack(values))).tolist()
+    rms_errors = np.sqrt(np.asarray(jnp.stack(values))).tolist()
     t = np.asarray(on_sphere(jnp.asarray(parameters)), dtype=np.float64)
     return LearnedSharpening(
         transform=t / np.linalg.norm(t, axis=0, keepdims=True),
         estimator=estimator,
         loss=loss,
-        losses=losses,
+        rms_errors=rms_errors,
         seconds=time.perf_counter() - start,
     )
