@@ -354,7 +354,8 @@ def train(
             channel positive): the grid's bin size and origin are fitted to both, so a light
             outside the training set's range but in ``window`` does not wrap onto the far side of
             the torus (a model that will see other cameras' lights; None: the training lights
-            alone, the reference code's choice). Ignored with ``prior``, whose bin size is kept.
+            alone, the reference code's choice). With ``prior`` the bin size stays the prior's and
+            the window only moves the origin.
 
     Returns:
         ``(trained FFCC, TrainingRecord)``.
