@@ -55,15 +55,20 @@ def light_bank() -> np.ndarray:
     import colour  # imported here: colour-science is slow to import
 
     spectra = [blackbody(np.arange(2000.0, 10000.0 + 1, 500.0)), cie_daylight(np.arange(4000.0, 25000.0 + 1, 1000.0))]
-    named = colour.SDS_ILLUMINANTS
-    series = [f"FL{i}" for i in range(1, 13)] + [name for name in named if name.startswith("LED-")]
-    spectra.append(
-        np.stack(
-            [resample(np.asarray(named[n].wavelengths), np.asarray(named[n].values), kind="light") for n in series]
-        )
-    )
+    series = [f"FL{i}" for i in range(1, 13)] + [name for name in colour.SDS_ILLUMINANTS if name.startswith("LED-")]
+    spectra.append(_cie_illuminants(series))
     bank = np.concatenate(spectra).astype(np.float64)
     return bank / bank.mean(axis=1, keepdims=True)
+
+
+def _cie_illuminants(names: list[str]) -> np.ndarray:
+    """colour-science's CIE illuminants ``names`` on the ccjax grid, ``(len(names), 101)``."""
+    import colour  # imported here: colour-science is slow to import
+
+    named = colour.SDS_ILLUMINANTS
+    return np.stack(
+        [resample(np.asarray(named[n].wavelengths), np.asarray(named[n].values), kind="light") for n in names]
+    )
 
 
 @functools.cache
@@ -78,15 +83,7 @@ def window_lights() -> np.ndarray:
     Returns:
         ``(L + 5, 3)`` float64 whites, each of unit sum.
     """
-    import colour  # imported here: colour-science is slow to import
-
-    named = colour.SDS_ILLUMINANTS
-    lamps = np.stack(
-        [
-            resample(np.asarray(named[n].wavelengths), np.asarray(named[n].values), kind="light")
-            for n in ("HP1", "HP2", "HP3", "HP4", "HP5")
-        ]
-    )
+    lamps = _cie_illuminants(["HP1", "HP2", "HP3", "HP4", "HP5"])
     whites = np.concatenate([light_bank(), lamps / lamps.mean(axis=1, keepdims=True)]) @ reference_sensors()
     return whites / whites.sum(axis=1, keepdims=True)
 
