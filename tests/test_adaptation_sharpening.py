@@ -109,4 +109,11 @@ def test_sharpen_command_prints_the_transform(small_world_commands, small_test_w
 
 def test_the_fit_takes_its_products_at_highest_precision(world):
     assert precision.low_precision_products(sharpening.camera_to_xyz, world) == []
-    assert precision.low_precision_products(lambda w: sharpening.adaptation_sharpening(w, "CAT16"), world) == []
+
+
+def test_the_transform_is_numpy_float64_as_every_sharpening_methods(world):
+    transform = sharpening.adaptation_sharpening(world, "CAT16")
+    others = [sharpening.average_sharpening(world), sharpening.optimal_sharpening(world)[0]]
+    assert all(type(t) is np.ndarray and t.dtype == np.float64 for t in [transform, *others])
+    camera = np.asarray(sharpening.camera_to_xyz(world), np.float64)
+    np.testing.assert_allclose(transform, camera @ sharpening.cat_matrix("CAT16").T, rtol=1e-13)

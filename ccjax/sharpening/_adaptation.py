@@ -80,7 +80,7 @@ def cat_matrix(name: str) -> np.ndarray:
     return np.asarray(known[name], np.float64)
 
 
-def adaptation_sharpening(world: World, name: str = "CAT02") -> Float[Array, "3 3"]:
+def adaptation_sharpening(world: World, name: str = "CAT02") -> Float[np.ndarray, "3 3"]:
     """A chromatic adaptation transform as a sharpening transform of the world's camera:
     ``T = C @ M^T`` with ``C`` = :func:`camera_to_xyz` (fitted on the world's surfaces) and ``M``
     the transform's matrix (:func:`cat_matrix`).
@@ -95,15 +95,16 @@ def adaptation_sharpening(world: World, name: str = "CAT02") -> Float[Array, "3 
             name of colour-science's ``CHROMATIC_ADAPTATION_TRANSFORMS``.
 
     Returns:
-        ``(3, 3)`` ``T`` in the world's dtype.
+        ``(3, 3)`` ``T``, NumPy float64 (as every sharpening method's transform:
+        :func:`database_sharpening`, :func:`optimal_sharpening`, :func:`new_sharpening`,
+        :func:`learned_sharpening`).
 
     Examples:
         >>> from ccjax import World, sharpening
         >>> world = World.default()
         >>> transform = sharpening.adaptation_sharpening(world, "Bradford")
         >>> model = sharpening.sharpened("GW", transform, world)  # grey world in Bradford space
-        >>> transform.shape
-        (3, 3)
+        >>> transform.shape, transform.dtype
+        ((3, 3), dtype('float64'))
     """
-    matrix = jnp.asarray(cat_matrix(name), world.canonical_rgb.dtype)
-    return matmul(camera_to_xyz(world), matrix.T)
+    return np.asarray(camera_to_xyz(world), np.float64) @ cat_matrix(name).T
