@@ -159,7 +159,9 @@ def test_the_commands_train_once_and_bind_the_camera_named(small_world_commands,
     monkeypatch.setattr(augmented, "Augmentation", functools.partial(augmented.Augmentation, database=2, sampled=1))
     real = conditioned.train
     monkeypatch.setattr(conditioned, "train", lambda *a, **k: real(*a[:4], SETTINGS, bins=BINS, index=k.get("index")))
-    small = conditioned.AnyCamera(core=ffcc.init_ffcc(BINS), matrix=jnp.eye(3, dtype=jnp.float32))
+    small = conditioned.AnyCamera(
+        core=ffcc.init_ffcc(BINS), grey=conditioned.no_grey_observation(), matrix=jnp.eye(3, dtype=jnp.float32)
+    )
     monkeypatch.setattr(conditioned, "init_any_camera", lambda: small)  # the skeleton a model file is read into
     root = small_world_commands
     for index, name in enumerate(("canon", "nikon")):

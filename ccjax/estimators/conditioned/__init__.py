@@ -7,7 +7,10 @@ fitted on the SFU reflectances under a bank of Planckian, daylight, fluorescent 
 one FFCC model (log-chroma histograms of pixels and edges, learned filters and bias) is trained in
 that space on every training image mapped there by its own camera's map, its histogram's window
 set on every plausible light (:func:`window_lights`), not only the training cameras' (:mod:`._fitting`); at
-inference the camera's image is mapped in, the light estimated and mapped back (:mod:`._model`).
+inference the camera's image is mapped in, FFCC's posterior combined with shades of grey's
+observation of the light (:class:`GreyObservation`: FFCC's filters learn the training scenes, and
+on unlike scenes a statistic of the image's own pixels corrects them), and the light mapped back
+(:mod:`._model`).
 The camera's *fingerprint* (its whites under the bank) names its twins, which leave-one-camera-out
 keeps out of a fold. Camera augmentation (each training image also mapped into other cameras,
 real and sampled, through the per-light maps of :mod:`ccjax.transfer`) is built in
@@ -15,6 +18,7 @@ real and sampled, through the per-light maps of :mod:`ccjax.transfer`) is built 
 """
 
 from ccjax.estimators.conditioned._fitting import to_reference, train
+from ccjax.estimators.conditioned._grey import GreyObservation, fit_grey_observation, no_grey_observation
 from ccjax.estimators.conditioned._model import AnyCamera
 from ccjax.estimators.conditioned._space import (
     TWIN_DEGREES,
@@ -34,11 +38,14 @@ __all__ = [
     "TWIN_DEGREES",
     "WHITE_WEIGHT",
     "AnyCamera",
+    "GreyObservation",
     "fingerprint",
     "fingerprint_distance",
+    "fit_grey_observation",
     "init_any_camera",
     "light_bank",
     "model_name",
+    "no_grey_observation",
     "reference_matrix",
     "reference_sensors",
     "to_reference",
@@ -60,7 +67,7 @@ def init_any_camera() -> AnyCamera:
 
     from ccjax.estimators.ffcc import init_ffcc
 
-    return AnyCamera(core=init_ffcc(), matrix=jnp.eye(3, dtype=jnp.float32))
+    return AnyCamera(core=init_ffcc(), grey=no_grey_observation(), matrix=jnp.eye(3, dtype=jnp.float32))
 
 
 @register(

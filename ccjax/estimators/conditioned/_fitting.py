@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from ccjax.estimators.conditioned._grey import POSTERIOR_SCALE, fit_grey_observation, no_grey_observation
 from ccjax.estimators.conditioned._model import AnyCamera
 from ccjax.estimators.conditioned._space import window_lights
 from ccjax.estimators.ffcc import BINS, Hyperparameters, TrainingRecord, init_ffcc
@@ -82,6 +83,7 @@ def train(
     bins: int = BINS,
     index: np.ndarray | None = None,
     window: Float[Array | np.ndarray, "M 3"] | None = None,
+    posterior_scale: float | None = POSTERIOR_SCALE,
 ) -> tuple[AnyCamera, TrainingRecord]:
     """Train the any-camera estimator on images of several cameras (module docstring).
 
@@ -98,6 +100,10 @@ def train(
             lights (:func:`ccjax.estimators.ffcc.train`; None: :func:`window_lights`, every light
             of the bank and the discharge lamps, so that a camera whose lights lie beyond the
             training cameras' does not see them wrap).
+        posterior_scale: the factor on FFCC's covariance where shades of grey's observation is
+            combined with it (:class:`~ccjax.estimators.conditioned.GreyObservation`; the
+            observation's bias and covariance are fitted on the training entries); None: no
+            observation, FFCC alone.
 
     Returns:
         ``(unbound AnyCamera, TrainingRecord)``.
@@ -115,7 +121,11 @@ def train(
     settings = hyperparameters or Hyperparameters()
     held = window_lights() if window is None else window
     core, record = train_ffcc(init_ffcc(bins), mapped, usable, reference_lights, settings, window=held)
+    if posterior_scale is None:
+        grey = no_grey_observation(core.bias.dtype)
+    else:
+        grey = fit_grey_observation(mapped, usable, reference_lights, posterior_scale)
     del mapped
-    model = AnyCamera(core=core, matrix=jnp.eye(3, dtype=core.bias.dtype))
+    model = AnyCamera(core=core, grey=grey, matrix=jnp.eye(3, dtype=core.bias.dtype))
     jax.block_until_ready(model)
     return model, record

@@ -4,8 +4,10 @@ camera by its curves' map (:func:`ccjax.estimators.conditioned.reference_matrix`
 An image of camera C is mapped into the reference camera (``M_C x`` per pixel; a pixel whose mapped
 colour leaves the positive octant is not counted), the FFCC model trained there
 (:class:`~ccjax.estimators.ffcc.FFCC`: log-chroma histograms of pixels and edges, learned filters
-and bias, von Mises fit) estimates the light in the reference space, and ``M_C^-1`` takes it back
-into C's raw space. The model's weights do not depend on the camera: binding is a 3x3 from the
+and bias, von Mises fit) gives a posterior over the light in the reference space, shades of grey of
+the mapped image is combined with it as a second, Gaussian observation
+(:mod:`ccjax.estimators.conditioned._grey`), and ``M_C^-1`` takes the light back into C's raw
+space. The model's weights do not depend on the camera: binding is a 3x3 from the
 curves, no retraining.
 """
 
@@ -22,6 +24,7 @@ from jaxtyping import Array, Bool, Float
 from ccjax.backends import block_scenes
 from ccjax.camera import Camera
 from ccjax.estimators.base import NO_PADDING_BRANCH, AbstractImageEstimator, Estimate, Padding
+from ccjax.estimators.conditioned._grey import GreyObservation
 from ccjax.estimators.conditioned._space import reference_matrix
 from ccjax.estimators.ffcc import FFCC, uv_to_rgb
 from ccjax.precision import matmul
@@ -35,12 +38,15 @@ class AnyCamera(AbstractImageEstimator):
 
     Attributes:
         core: the FFCC model of the reference camera's space.
+        grey: shades of grey's observation of the light, combined with ``core``'s posterior
+            (:class:`~ccjax.estimators.conditioned.GreyObservation`; zero precision: FFCC alone).
         matrix: ``(3, 3)`` the bound camera's map into the reference space (identity: unbound).
         camera: the bound camera's name (None: unbound; estimating then takes images as the
             reference camera's).
     """
 
     core: FFCC
+    grey: GreyObservation
     matrix: Float[Array, "3 3"]
     camera: str | None = eqx.field(static=True, default=None)
     estimates_brightness: ClassVar[bool] = False
@@ -70,7 +76,7 @@ class AnyCamera(AbstractImageEstimator):
             The bound model (same weights).
         """
         matrix = jnp.asarray(np.asarray(reference_matrix(camera), np.float32))
-        return AnyCamera(core=self.core, matrix=matrix, camera=camera.name)
+        return AnyCamera(core=self.core, grey=self.grey, matrix=matrix, camera=camera.name)
 
     def unbound(self) -> AnyCamera:
         """The model without a camera (the identity map): what a model file holds.
@@ -78,12 +84,15 @@ class AnyCamera(AbstractImageEstimator):
         Returns:
             The unbound model.
         """
-        return AnyCamera(core=self.core, matrix=jnp.eye(3, dtype=self.matrix.dtype), camera=None)
+        return AnyCamera(core=self.core, grey=self.grey, matrix=jnp.eye(3, dtype=self.matrix.dtype), camera=None)
 
     def __call__(self, image: Float[Array, "H W 3"], mask: Bool[Array, "H W"]) -> Estimate:
         mapped = matmul(image, self.matrix.T)
         usable = mask & jnp.all(mapped > 0, axis=-1)
-        posterior = self.core.posterior(jnp.where(usable[..., None], mapped, 0.0), usable)
-        light = jnp.linalg.solve(self.matrix, uv_to_rgb(posterior.mean))
+        mapped = jnp.where(usable[..., None], mapped, 0.0)
+        posterior = self.core.posterior(mapped, usable)
+        observed, seen = self.grey.observe(mapped, usable)
+        uv = self.grey.combine(posterior.mean, posterior.covariance, observed, seen & posterior.ok)
+        light = jnp.linalg.solve(self.matrix, uv_to_rgb(uv))
         light = light / jnp.sum(light)
         return Estimate(illuminant=light, ok=posterior.ok & jnp.all(light > 0))
