@@ -339,7 +339,10 @@ def load_model(path: Path, like: ModelT) -> ModelT:
     try:
         model = eqx.tree_deserialise_leaves(path, like)
     except (OSError, ValueError, RuntimeError) as error:
-        raise ValueError(f"model: {path} does not fit a {type(like).__name__}: {error}") from None
+        raise ValueError(
+            f"model: {path} does not fit a {type(like).__name__} ({error}); a model written before this "
+            "method's parameters changed must be trained again"
+        ) from None
     for leaf in jax.tree_util.tree_leaves(eqx.filter(model, eqx.is_array)):
         if jnp.issubdtype(leaf.dtype, jnp.inexact) and not bool(jnp.all(jnp.isfinite(leaf))):
             raise ValueError(f"model: {path} holds non-finite values")

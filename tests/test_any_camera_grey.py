@@ -92,3 +92,19 @@ def test_a_model_without_the_observation_answers_as_its_ffcc_alone():
     target = numpy_grey_log_chroma(image[0], mask[0])
     rgb = np.array([np.exp(-target[0]), 1.0, np.exp(-target[1])])
     np.testing.assert_allclose(np.asarray(pulled.illuminant), rgb / rgb.sum(), atol=1e-4)
+
+
+def test_a_model_file_without_the_observation_is_refused_in_one_sentence(tmp_path):
+    import equinox as eqx
+    import pytest
+
+    from ccjax.runs import store
+
+    # A file and record as any-camera writes them, then the leaves it held before the observation
+    # (its FFCC and its map, no more) written over the file.
+    path = tmp_path / "old.eqx"
+    model = conditioned.init_any_camera()
+    store.save_trained(path, model, label="any-camera", camera=None, record={"conditioned": True})
+    eqx.tree_serialise_leaves(path, {"core": model.core, "matrix": model.matrix})
+    with pytest.raises(ValueError, match=r"old\.eqx does not fit a AnyCamera .*must be trained again"):
+        store.load_model(path, camera="Canon EOS 600D")
