@@ -23,12 +23,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ccjax.camera import Camera, cameras
 from ccjax.estimators.conditioned import TWIN_DEGREES, fingerprint_distance, reference_matrix, twins
+from ccjax.transfer import AbstractCameraMap
 
 __all__ = ["Augmentation", "Augmented", "augment", "augmentation_cameras"]
 
@@ -112,6 +114,31 @@ def augmentation_cameras(
     return bank
 
 
+@eqx.filter_jit
+def _matrices_for(camera_map, lights):
+    return jax.vmap(camera_map.matrix_for)(lights)
+
+
+def _per_light_matrices(camera_map: AbstractCameraMap, lights: np.ndarray) -> np.ndarray:
+    """Each light's map (``camera_map.matrix_for``) as one compiled program per power-of-two
+    count of lights: every (source, camera) pair's map has the same shapes, so a fold compiles a
+    handful of programs, not one per pair (op by op under ``vmap``, 90 pairs cost 100 s of
+    compiling).
+
+    Arguments:
+        camera_map: a camera map (:class:`~ccjax.transfer.PerLightMap` here).
+        lights: ``(N, 3)`` the lights in the map's source camera, ``N >= 1``.
+
+    Returns:
+        ``(N, 3, 3)`` float64.
+    """
+    count = len(lights)
+    size = 1 << max(0, (count - 1).bit_length())
+    # Padded with copies of the first light: a valid light, its rows dropped below.
+    padded = np.concatenate([lights, np.repeat(lights[:1], size - count, axis=0)])
+    return np.asarray(_matrices_for(camera_map, jnp.asarray(padded)), np.float64)[:count]
+
+
 def augment(
     lights: np.ndarray,
     sources: Sequence[str],
@@ -155,7 +182,7 @@ def augment(
                 if not len(image):
                     continue
                 camera_map = fit_camera_map(source, camera, world=world)
-                per_light = np.asarray(jax.vmap(camera_map.matrix_for)(jnp.asarray(lights[image])), np.float64)
+                per_light = _per_light_matrices(camera_map, lights[image])
                 index.append(image)
                 matrices.append(into[k] @ per_light)
                 names.extend([camera.name] * len(image))
