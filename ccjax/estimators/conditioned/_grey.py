@@ -30,6 +30,7 @@ from jaxtyping import Array, Bool, Float
 
 from ccjax.estimators.neural import log_chroma
 from ccjax.estimators.simple import ShadesOfGrey
+from ccjax.precision import matmul
 
 __all__ = ["GreyObservation", "fit_grey_observation", "no_grey_observation"]
 
@@ -89,9 +90,10 @@ class GreyObservation(eqx.Module):
         Returns:
             ``(2,)`` the combined log-chroma.
         """
-        precision = jnp.where(ok, self.precision, 0.0)
-        widened = jnp.linalg.inv(self.posterior_scale * covariance)
-        return jnp.linalg.solve(widened + precision, widened @ mean + precision @ observed)
+        observation = jnp.where(ok, self.precision, 0.0)
+        posterior = jnp.linalg.inv(self.posterior_scale * covariance)
+        weighted = matmul(posterior, mean[:, None]) + matmul(observation, observed[:, None])
+        return jnp.linalg.solve(posterior + observation, weighted)[:, 0]
 
 
 def no_grey_observation(dtype=jnp.float32) -> GreyObservation:
