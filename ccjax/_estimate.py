@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ccjax._cache import enable_compilation_cache
-from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, validate_input
+from ccjax.estimators import AbstractEstimator, Estimate, estimate_batch, registry, validate_input
 from ccjax.estimators.inputs import validate_image
 from ccjax.io.reading import CLIP_FRACTION, LinearImage
 from ccjax.preprocessing import estimate_image, estimate_pixels, resolve, usable_pixels
@@ -69,6 +69,7 @@ def estimate(method, x, mask=None, *, world: World | None = None, saturation: fl
     _refuse_traced(x, mask)
     enable_compilation_cache()
     if isinstance(method, str):
+        registry.refuse_untrained(method)
         # The same object for repeated calls, so they also reuse its compiled code.
         model = store.fit(method, world if world is not None else store.world())
     elif isinstance(method, AbstractEstimator):
@@ -81,6 +82,7 @@ def estimate(method, x, mask=None, *, world: World | None = None, saturation: fl
     _check_saturation(saturation, x)
     images, mask = validate_image(x, mask)
     clipped = np.zeros(images.shape[:-1], bool) if saturation is None else np.any(images >= saturation, axis=-1)
+    _refuse_all_clipped(clipped, saturation)
     if images.ndim == 3:
         return estimate_image(model, LinearImage(rgb=images, clipped=clipped), mask=mask)
     if model.input_kind == "surfaces" and not resolve(model).pixels:
@@ -123,6 +125,20 @@ def _check_saturation(saturation: float | None, x) -> None:
         raise ValueError(
             f"saturation: {saturation!r} is on the unit scale but the image holds integers ({np.dtype(dtype)}); "
             "divide it by its saturation level (e.g. 65535) or give saturation in its units"
+        )
+
+
+def _refuse_all_clipped(clipped: np.ndarray, saturation: float | None) -> None:
+    """The command line's rule for an image every pixel of which is clipped (an error, not the
+    fallback light): most often an image on its file's scale (0..65535) given with the unit
+    scale's clip level."""
+    whole = clipped.reshape(-1, *clipped.shape[-2:]).all(axis=(1, 2))
+    if np.any(whole):
+        which = "the image" if clipped.ndim == 2 else f"image {int(np.argmax(whole))} of the batch"
+        raise ValueError(
+            f"image: every pixel of {which} is clipped (a channel at or above the clip level saturation="
+            f"{saturation:g}); an image on its file's scale (0..65535) must be divided by its saturation level, "
+            "or given with saturation in its units"
         )
 
 

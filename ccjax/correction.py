@@ -74,11 +74,13 @@ def correct(
     canonical_white: ArrayLike,
     sharpening: ArrayLike | None = None,
     saturation: float | None = None,
+    clipped: ArrayLike | None = None,
 ) -> Float[Array, "... 3"]:
     """Map an image from the estimated light to the canonical light (jit-able).
 
-    Clip to white: with ``saturation``, a pixel with a channel at or above it comes out as the
-    canonical white with its brightest channel at ``saturation``. Its true colour is unknown (the
+    Clip to white: with ``saturation``, a pixel with a channel at or above it (or, given, a pixel
+    marked in ``clipped``: the rule estimation used, :attr:`ccjax.io.LinearImage.clipped`) comes out
+    as the canonical white with its brightest channel at ``saturation``. Its true colour is unknown (the
     sensor recorded its clipped channels at the ceiling, not their values), and mapped like the
     other pixels a clipped white takes the colour of the gains (a magenta highlight where the green
     gain is the largest); the brightest white the output can show is what a highlight looks like.
@@ -88,6 +90,9 @@ def correct(
         illuminant, canonical_white, sharpening: see :func:`correction_map`.
         saturation: the sensor's clip level on ``rgb``'s scale (1.0 for a :class:`ccjax.io.LinearImage`),
             or None to map clipped pixels like the others.
+        clipped: optional booleans ``rgb.shape[:-1]``, True where a pixel is clipped; given, they
+            decide which pixels come out white (``saturation`` then only sets the white's
+            brightness, default 1.0), so that correction whitens what estimation left out.
 
     Returns:
         The corrected pixels; a diagonal map is applied as per-channel gains, a sharpened one as a
@@ -98,7 +103,12 @@ def correct(
         corrected = rgb * diagonal_gains(illuminant, canonical_white)
     else:
         corrected = apply_map(rgb, correction_map(illuminant, canonical_white, sharpening))
-    if saturation is None:
+    if clipped is not None:
+        level = 1.0 if saturation is None else saturation
+        whitened = jnp.asarray(clipped, bool)[..., None]
+    elif saturation is not None:
+        level, whitened = saturation, jnp.any(rgb >= saturation, axis=-1, keepdims=True)
+    else:
         return corrected
-    white = (saturation * canonical_white / jnp.max(canonical_white)).astype(corrected.dtype)
-    return jnp.where(jnp.any(rgb >= saturation, axis=-1, keepdims=True), white, corrected)
+    white = (level * canonical_white / jnp.max(canonical_white)).astype(corrected.dtype)
+    return jnp.where(whitened, white, corrected)

@@ -114,3 +114,33 @@ def test_correct_srgb_writes_full_resolution_srgb(small_world_commands, bits):
     want = np.round(encoded * (2**bits - 1))
     assert np.max(np.abs(got.astype(np.float64) - want)) <= 1 + (2**bits - 1) * 2e-4
     assert np.all(got[4:8, 4:9] == 2**bits - 1)  # the clipped blob: sRGB white
+
+
+@pytest.mark.parametrize("saturation", [None, "64224", "65535"])
+def test_correction_whitens_exactly_the_pixels_estimation_leaves_out(small_world_commands, saturation):
+    """One clip rule: patches just under full scale (a near white [60000, 64500, 64500] and a
+    green-clipped [30000, 65000, 20000]) are clipped at the default level (0.98 of 65535 = 64224.3)
+    and at ``--saturation 64224``, so they come out sRGB white; with ``--saturation 65535`` they are
+    not clipped and are mapped like the other pixels. The oracle is the rule written here in NumPy:
+    a channel at or above the level."""
+    from ccjax import cli, io
+
+    folder = small_world_commands
+    rng = np.random.default_rng(4)
+    codes = np.round(rng.uniform(0.05, 0.6, (20, 24, 3)) * np.array([1.0, 0.7, 0.4]) * 65535).astype(np.uint16)
+    codes[2:6, 2:6] = [60000, 64500, 64500]
+    codes[10:14, 10:14] = [30000, 65000, 20000]
+    codes[15:18, 3:7] = [64000, 64000, 64000]  # under every level: never clipped
+    io.write_png(folder / "near.png", codes)
+    argv = ["correct", str(folder / "near.png"), str(folder / "near-out.png"), "--method", "GW", "--srgb", "8"]
+    argv += ["--no-progress", *(["--saturation", saturation] if saturation else [])]
+    assert cli.main(argv) == 0
+    level = 0.98 * 65535 if saturation is None else float(saturation)
+    clipped = np.any(codes >= level, axis=-1)
+    got = io.read_png(folder / "near-out.png")
+    white = np.all(got == 255, axis=-1)
+    assert clipped[2:6, 2:6].all() == clipped[10:14, 10:14].all() == (saturation != "65535")
+    np.testing.assert_array_equal(white[clipped], True)
+    assert not white[15:18, 3:7].any()
+    if saturation == "65535":
+        assert not white[2:6, 2:6].any() and not white[10:14, 10:14].any()

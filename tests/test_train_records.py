@@ -64,10 +64,18 @@ def test_an_adam_family_records_its_schedule_and_a_given_camera(folder, capsys):
     assert record["camera"] is None and "camera" not in first
 
 
-def test_a_world_based_family_records_the_default_camera_it_used(folder, capsys):
-    record, first = _train(folder, "cbc", "--method", "C-by-C-MMSE", "--epochs", "1", capsys=capsys)
-    assert record["camera"] == DEFAULT_CAMERA
-    assert f"camera {DEFAULT_CAMERA}, the default: give --camera; start: its spectral fit" in first
+def test_a_world_based_family_needs_the_camera_and_records_it(folder, capsys):
+    """Without --camera a world-based family is refused before any work, as ``estimate`` refuses it
+    (it would be bound to the default camera and then refuse the right one); given, it is recorded."""
+    out = folder / "cbc-nocamera.eqx"
+    argv = ["train", str(folder / "set"), "--method", "C-by-C-MMSE", "--epochs", "1", "--out", str(out)]
+    assert cli.main([*argv, "--no-progress"]) == 2
+    assert "--camera: C-by-C-MMSE is fitted to a world seen through a camera's curves" in capsys.readouterr().err
+    assert not out.exists() and not out.with_suffix(".json").exists()
+    record, first = _train(
+        folder, "cbc", "--method", "C-by-C-MMSE", "--epochs", "1", "--camera", DEFAULT_CAMERA, capsys=capsys
+    )
+    assert record["camera"] == DEFAULT_CAMERA and f"camera {DEFAULT_CAMERA}; start: its spectral fit" in first
 
 
 def test_adam_options_for_ffcc_are_refused(folder, capsys):

@@ -175,6 +175,7 @@ def run_correct(args) -> int:
 
     from ccjax import runs
     from ccjax.cli.estimate import STATUS_WORDS, unit_light
+    from ccjax.estimators import registry
     from ccjax.estimators.base import Status
     from ccjax.runs.sources import raise_failures
 
@@ -183,6 +184,7 @@ def run_correct(args) -> int:
     image_options.check_labels([] if args.method is None else [args.method], args)
     paths, outputs, previews = correct_outputs(args)
     if args.model is None:
+        registry.refuse_untrained(args.method, "--method")
         image_options.require_camera([args.method], args)
         method, world = str(args.method), image_options.image_world(args)
     else:

@@ -42,12 +42,16 @@ def estimate_model(args):
 
     Raises:
         ValueError: neither or both given; a model file that cannot be read or whose record names
-            another camera than ``--camera``; a world-based ``--method`` without ``--camera``.
+            another camera than ``--camera``; a world-based ``--method`` without ``--camera``; a
+            ``--method`` that must be trained first (FFCC, log-chroma-mlp, any-camera).
     """
+    from ccjax.estimators import registry
+
     if (args.method is None) == (args.model is None):
         raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
     if args.model is None:
         image_options.check_labels([args.method], args)
+        registry.refuse_untrained(args.method, "--method")
         image_options.require_camera([args.method], args)
         return args.method, None
     image_options.check_labels([], args)

@@ -340,6 +340,7 @@ def evaluation_values(args, cameras: dict[str, str | None], pretraining):
 
 def run_evaluate(args) -> int:
     from ccjax import _cache, evaluation
+    from ccjax.estimators import registry
     from ccjax.runs.sources import raise_failures
 
     start = time.perf_counter()
@@ -347,6 +348,7 @@ def run_evaluate(args) -> int:
     check_folds(args)
     cameras = check_folders(args)
     image_options.check_labels(labels_of(args.methods) + (args.train or []), args)
+    registry.refuse_untrained(labels_of(args.methods), "--methods")
     check_outputs(
         evaluate_inputs(args),
         [("--json", args.json), ("--csv", args.csv), ("--plot", args.plot), *model_outputs(args)],

@@ -80,8 +80,9 @@ def file_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--decode-srgb",
         action="store_true",
-        help="the images (not raw files) are sRGB-encoded, as JPEG and most 8-bit files are: undo the sRGB curve "
-        "(colour-science) before estimating; 8-bit files and JPEG are accepted",
+        help="undo the sRGB curve (colour-science) of the sRGB-encoded images before estimating: 8-bit files, "
+        "JPEG, and PNG/TIFF files tagged as gamma-encoded (an sRGB or gAMA chunk, an sRGB ICC profile), which are "
+        "refused without it; 16-bit and float files without such a tag, and raw files, are read as linear all the same",
     )
 
 
@@ -164,7 +165,7 @@ def check_labels(labels, args=None) -> None:
     check_camera_name(args)
 
 
-def require_camera(labels, args) -> None:
+def require_camera(labels, args, *, other_world: bool = True) -> None:
     """Refuse world-based methods (``model.world_based``: fitted to a world seen through a camera's
     curves) when the camera is not given, before any image is read. Without ``--camera`` the
     labels are fitted (through the store) to the default world, which the command then uses.
@@ -172,6 +173,8 @@ def require_camera(labels, args) -> None:
     Arguments:
         labels: estimator labels (known to the registry).
         args: the parsed arguments (``--world``, ``--camera``).
+        other_world: the command takes ``--world barnard1999`` for these methods (the message
+            offers it).
 
     Returns:
         None.
@@ -189,8 +192,8 @@ def require_camera(labels, args) -> None:
         raise ValueError(
             f"--camera: {', '.join(fitted)} {'is' if len(fitted) == 1 else 'are'} fitted to a world seen through "
             "a camera's curves; give the camera that took the images with --camera NAME (`ccjax cameras` lists "
-            "the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the ground truth) or "
-            "use --world barnard1999"
+            "the names, `ccjax cameras --check GT.csv --camera NAME` tests a guess against the ground truth)"
+            + (" or use --world barnard1999" if other_world else "")
         )
 
 

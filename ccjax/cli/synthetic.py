@@ -182,19 +182,21 @@ def run_compare(args) -> int:
 
 def check_surface_methods(labels: list[str]) -> None:
     """Refuse image estimators in ``compare --methods`` before anything is fitted, naming them and
-    the command that scores them.
+    the command that scores them, and methods that must be trained first.
 
     Raises:
-        ValueError: a label of an image estimator (an unknown label is left to the fit's message).
+        ValueError: a label of an image estimator or of an untrained learned method (an unknown
+            label is left to the fit's message).
     """
     from ccjax.estimators import registry
 
-    images = []
+    images, known = [], []
     for label in labels:
         try:
             entry, _ = registry.lookup(label)
         except ValueError:
             continue
+        known.append(label)
         if entry.input_kind == "image":
             images.append(label)
     if images:
@@ -203,6 +205,7 @@ def check_surface_methods(labels: list[str]) -> None:
             "neighbours): score them on images with `ccjax evaluate DIR --methods ...` (a folder of linear images "
             "with ground truth, e.g. written by ccjax.io.write_dataset)"
         )
+    registry.refuse_untrained([label for label in labels if label in known], "--methods")
 
 
 def _sweep(args, world, methods):

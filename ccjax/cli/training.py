@@ -197,6 +197,8 @@ def run_train(args) -> int:
     from ccjax.estimators import registry
 
     registry.lookup(args.method)  # an unknown label fails before any image is read
+    # As estimate does: a model fitted to a world is bound to its camera, which is never guessed.
+    image_options.require_camera([args.method], args, other_world=False)
     directory = Path(args.directory)
     truth = Path(args.ground_truth) if args.ground_truth else directory / "groundtruth.csv"
     check_outputs(train_inputs(directory, truth), train_outputs(args.out), overwrite=args.overwrite)
@@ -388,9 +390,8 @@ def start_words(start, camera: str | None, world) -> str:
     Returns:
         The words, with a leading space, or nothing.
     """
-    if start.world_based:
-        given = "" if camera is not None else ", the default: give --camera"
-        return f" (camera {world.camera.name}{given}; start: its spectral fit)"
+    if start.world_based:  # the camera is given: train refuses a world-based family without it
+        return f" (camera {world.camera.name}; start: its spectral fit)"
     return f" (camera {camera}, recorded; the method uses no camera's curves)" if camera is not None else ""
 
 

@@ -44,6 +44,9 @@ class Entry:
         differentiable: the model has useful gradients with respect to its input RGB.
         stored: the store may keep fitted models on disk (False where the fit reads files that
             change, such as trained weights, so that a stored model could go stale).
+        untrained: the fit is only training's starting point (FFCC's zero filters, an MLP's random
+            weights): its answers mean nothing until the model is trained on labelled photographs,
+            so estimating by this label is refused (:func:`refuse_untrained`).
     """
 
     pattern: re.Pattern
@@ -55,6 +58,7 @@ class Entry:
     traceable_fit: bool = False
     differentiable: bool = False
     stored: bool = True
+    untrained: bool = False
 
 
 _ENTRIES: list[Entry] = []
@@ -96,6 +100,7 @@ def register(
     traceable_fit: bool = False,
     differentiable: bool = False,
     stored: bool = True,
+    untrained: bool = False,
 ):
     """Decorator: register ``build(world, match, **options)`` for the labels matching ``pattern``.
 
@@ -109,6 +114,7 @@ def register(
         traceable_fit: the build is pure JAX in the world's arrays.
         differentiable: the model has useful input gradients.
         stored: the store may keep fitted models on disk (see :class:`Entry`).
+        untrained: the fit is only training's starting point (see :class:`Entry`).
 
     Returns:
         The decorator (it returns ``build`` unchanged).
@@ -133,6 +139,7 @@ def register(
             bool(traceable_fit),
             bool(differentiable),
             bool(stored),
+            bool(untrained),
         )
         _ENTRIES.append(entry)
         return build
@@ -163,6 +170,32 @@ def lookup(label: str) -> tuple[Entry, re.Match]:
         f"method: unknown label {label!r}; {hint}`ccjax methods` (ccjax.estimators.registry.available()) lists "
         "every family's label grammar"
     )
+
+
+def refuse_untrained(labels, option: str = "method") -> None:
+    """Refuse estimating by the label of a method whose fit is only training's starting point
+    (:attr:`Entry.untrained`): an untrained FFCC or MLP answers with its initial parameters, a
+    light that has nothing to do with the image, marked as estimated. Fitting such a label stays
+    allowed (it is where training starts).
+
+    Arguments:
+        labels: registry labels (a single label may be given as a string).
+        option: the argument's name for the message (``"method"``, ``"--methods"``).
+
+    Returns:
+        None.
+
+    Raises:
+        ValueError: naming the first untrained label, how to train it and how to pass the model.
+    """
+    for label in [labels] if isinstance(labels, str) else labels:
+        if lookup(label)[0].untrained:
+            raise ValueError(
+                f"{option}: {label} is learned from labelled photographs and ccjax ships no trained parameters for "
+                f"it; untrained it would answer with its initial parameters. Train it (ccjax train --method {label} "
+                f"FOLDER --out MODEL.eqx; or evaluate --train {label}) and estimate with the "
+                "model (--model MODEL.eqx; ccjax.load_model(path) in Python)"
+            )
 
 
 def _spelling(name: str) -> str:

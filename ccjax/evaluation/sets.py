@@ -426,8 +426,11 @@ def evaluate(
         :class:`SetsEvaluation`: one row set per scored folder, the geometric means.
 
     Raises:
-        ValueError: no folder, two folders with one name, or a folder's evaluation's refusal (prefixed with it).
+        ValueError: no folder, two folders with one name, an untrained learned label among ``methods``
+            (:func:`ccjax.estimators.registry.refuse_untrained`: give it to the protocol to train), or a
+            folder's evaluation's refusal (prefixed with it).
     """
+    from ccjax.estimators import registry
     from ccjax.runs import store
 
     read, options = read or ReadOptions(), options or TrainingOptions()
@@ -438,6 +441,7 @@ def evaluate(
     if repeated:
         raise ValueError(f"folders: each folder needs its own name, got {', '.join(repeated)} more than once")
     check_model_cameras(methods, folders)
+    registry.refuse_untrained([method for method in methods if not method.endswith(MODEL_SUFFIX)], "methods")
     notes: list[str] = []
 
     def where(folder: FolderSet) -> str:  # one folder's errors need no name

@@ -105,11 +105,13 @@ def resolve_methods(
         The pairs, in order.
 
     Raises:
-        ValueError: an empty list, an unknown item or an image estimator.
+        ValueError: an empty list, an unknown item, an image estimator, or the label of a method
+            that must be trained first (:func:`ccjax.estimators.registry.refuse_untrained`).
     """
     from tqdm.auto import tqdm
 
     resolved, methods = [], list(methods)
+    registry.refuse_untrained([method for method in methods if isinstance(method, str)], "methods")
     # Counted by hand: a bar that wraps the iterable shows its count only when it redraws on its
     # own schedule, so naming the method (a redraw) showed 0 of N until the fits were done.
     bar = tqdm(total=len(methods), desc="fit", unit="method", disable=not progress, leave=False)

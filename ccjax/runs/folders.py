@@ -16,6 +16,7 @@ import numpy as np
 
 from ccjax import io
 from ccjax.estimators.base import AbstractEstimator, Estimate
+from ccjax.io.jpeg import upright_exif
 from ccjax.io.outputs import path_key
 from ccjax.io.preview import srgb_preview_rows
 from ccjax.io.reading import MAX_PIXELS, LinearImage
@@ -49,11 +50,14 @@ def fitted(method: str | AbstractEstimator, world: World | None = None) -> tuple
         The label and the model.
 
     Raises:
-        ValueError: ``method`` is neither; an unknown label.
+        ValueError: ``method`` is neither; an unknown label, or one whose fit is only training's
+            starting point (:func:`ccjax.estimators.registry.refuse_untrained`).
     """
     if isinstance(method, str):
+        from ccjax.estimators import registry
         from ccjax.runs import store
 
+        registry.refuse_untrained(method)
         return method, store.fit(method, world if world is not None else store.world())
     if isinstance(method, AbstractEstimator):
         return type(method).__name__, method
@@ -206,9 +210,16 @@ def correct_folder(
     def write(index: int, image: LinearImage, estimates: dict[str, Estimate]) -> None:
         estimate = estimates[label]
 
+        # The pixels estimation left out as clipped come out white (one clip rule: the reader's level,
+        # 0.98 of saturation by default or the saturation given); transparent ones are mapped as read.
+        whitened = image.clipped if image.transparent is None else image.clipped & ~image.transparent
+
         def corrected(rows: slice) -> np.ndarray:
-            # Clipped pixels come out white (1.0 is the sensor's saturation on the unit scale).
-            return np.asarray(correction.correct(image.rgb[rows], estimate.illuminant, canonical, sharpening, 1.0))
+            return np.asarray(
+                correction.correct(
+                    image.rgb[rows], estimate.illuminant, canonical, sharpening, 1.0, clipped=whitened[rows]
+                )
+            )
 
         # Corrected a piece of rows at a time (twice: once for the file, once for the preview),
         # so no float copy of a camera-sized image is made beside the image itself.
@@ -216,11 +227,13 @@ def correct_folder(
         for rows in row_slices(image.rgb.shape):
             piece = corrected(rows)
             codes[rows] = io.quantise(piece) if srgb is None else io.encode_srgb(piece @ matrix.T, srgb)
-        io.write_codes(written[index], codes, overwrite=overwrite)
+        # A JPEG output keeps its input's EXIF (camera, times), upright as its pixels are.
+        exif = upright_exif(image.path) if written[index].suffix.lower() in (".jpg", ".jpeg") else None
+        io.write_codes(written[index], codes, overwrite=overwrite, srgb=srgb is not None, exif=exif)
         del codes
         try:
             preview = srgb_preview_rows(corrected, image.rgb.shape, matrix)
-            io.write_png(shown[index], preview, overwrite=overwrite)
+            io.write_png(shown[index], preview, overwrite=overwrite, srgb=True)
         except BaseException:
             # An output without its preview (a full disk) would make a rerun refuse the output.
             written[index].unlink(missing_ok=True)

@@ -75,6 +75,7 @@ def init_any_camera() -> AnyCamera:
     example="any-camera",
     description="one model for every camera, bound by its curves (untrained until ccjax train --method any-camera)",
     input_kind="image",
+    untrained=True,
 )
 def _build_any_camera(world, match, **options):
     return init_any_camera()

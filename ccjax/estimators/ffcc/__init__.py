@@ -89,6 +89,7 @@ def init_ffcc(bins: int = BINS, bin_size: float = BIN_SIZE, origin: float = ORIG
     "FFCC-pool<k>: its histograms of k x k block means",
     grammar="FFCC[-pool<k>]",
     input_kind="image",
+    untrained=True,
 )
 def _build_ffcc(world, match, **options):
     if match.group(1) is not None:

@@ -121,6 +121,7 @@ def _build_sp_neural_net(world, match, **options):
     example="log-chroma-mlp",
     description="MLP on the log-chroma histogram (beyond the thesis; untrained until ccjax train)",
     input_kind="surfaces",
+    untrained=True,
 )
 def _build_log_chroma(world, match, *, seed: int = 0, **options):
     import jax
