@@ -96,3 +96,18 @@ def rg_bin(chromaticity: Float[ArrayLike, "... 2"], n_bins: int) -> Int[Array, "
         ``(..., 2)`` integer cell indices in ``[0, n_bins - 1]``.
     """
     return jnp.clip(jnp.floor(jnp.asarray(chromaticity) * n_bins).astype(jnp.int32), 0, n_bins - 1)
+
+
+def unit_light(rgb: list[float]) -> list[float]:
+    """``rgb`` scaled so that its largest channel is 1 (the scale of ccjax's lights): a relaxed
+    gamut solution's raw magnitude (hundreds) says nothing about the light's brightness, and a
+    photograph's exposure leaves that brightness unknown for every method.
+
+    Arguments:
+        rgb: an estimate's camera RGB, non-negative.
+
+    Returns:
+        The scaled RGB (as given when every channel is 0).
+    """
+    top = max(rgb)
+    return [value / top for value in rgb] if top > 0 else list(rgb)

@@ -126,9 +126,10 @@ def textured_image(path, colour=(0.5, 0.4, 0.3)):
 
 
 def one_line_error(captured, *needles):
-    """A command's stderr is one ``ccjax ...`` line naming every needle, without a traceback."""
+    """A command's stderr is one ``ccjax ...`` line naming every needle, without a traceback
+    (notices, which say what a command chose, are not errors: they are left out)."""
     assert "Traceback" not in captured.err
-    lines = captured.err.strip().splitlines()
+    lines = [line for line in captured.err.strip().splitlines() if ": notice: " not in line]
     assert len(lines) == 1 and lines[0].startswith("ccjax "), captured.err
     for needle in needles:
         assert str(needle) in lines[0], (needle, lines[0])

@@ -82,3 +82,30 @@ def test_training_within_folds_on_few_images_warns_once_per_method(folder, capsy
     assert cli.main(argv) == 0
     warnings = [line for line in capsys.readouterr().err.splitlines() if "warning: log-chroma-mlp" in line]
     assert len(warnings) == 1 and "4 per fold" in warnings[0] and "fewer than 50" in warnings[0]
+
+
+def test_one_light_scale_in_estimate_json_evaluate_json_and_csv(small_world_commands, capsys):
+    """The same image's grey-world light, printed by ``estimate --json`` and written by ``evaluate
+    --json`` and ``--csv``: one scale, the largest channel 1, equal to the NumPy grey world (mean
+    of the pixels) scaled so."""
+    import csv
+    import json
+
+    folder = small_world_commands / "scale"
+    rng = np.random.default_rng(8)
+    codes = np.round(rng.uniform(0.05, 0.5, (20, 30, 3)) * np.array([1.0, 0.7, 0.4]) * 65535).astype(np.uint16)
+    io.write_png(folder / "a.png", codes)
+    (folder / "groundtruth.csv").write_text("image,r,g,b\na.png,1,0.7,0.4\n")
+    mean = codes.reshape(-1, 3).astype(np.float64).mean(axis=0)
+    want = mean / mean.max()
+    assert cli.main(["estimate", str(folder / "a.png"), "--method", "GW", "--json", "--no-progress"]) == 0
+    printed = json.loads(capsys.readouterr().out)[0]["illuminant"]
+    argv = ["evaluate", str(folder), "--ground-truth", str(folder / "groundtruth.csv"), "--methods", "GW"]
+    out = small_world_commands / "scale-out"
+    assert cli.main([*argv, "--json", str(out) + ".json", "--csv", str(out) + ".csv", "--no-progress"]) == 0
+    written = json.loads((small_world_commands / "scale-out.json").read_text())["images"][0]["illuminant"]
+    with open(small_world_commands / "scale-out.csv", newline="") as handle:
+        row = next(csv.DictReader(handle))
+    tabled = [float(row[channel]) for channel in "RGB"]
+    for light in (printed, written, tabled):
+        np.testing.assert_allclose(light, want, rtol=1e-5)

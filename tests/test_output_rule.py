@@ -181,10 +181,10 @@ def test_correct_keeps_an_output_that_appears_after_its_check(setup, monkeypatch
 def test_a_full_disk_names_the_file_and_leaves_no_output_without_its_preview(setup, monkeypatch, capsys):
     writing.write_linear(setup / "in.png", np.full((6, 6, 3), 0.4))
     # The preview's bytes do not fit on the disk (the error has no file name, as ENOSPC from write()).
-    monkeypatch.setattr("builtins.open", _full_disk_open(setup / "out_preview.png"))
+    monkeypatch.setattr("builtins.open", _full_disk_open(setup / "out_tif_preview.png"))
     assert cli.main(["correct", str(setup / "in.png"), str(setup / "out.tif"), "--method", "GW", "--no-progress"]) == 2
-    _refused(capsys, "No space left on device", "out_preview.png")
-    assert not (setup / "out.tif").exists() and not (setup / "out_preview.png").exists()
+    _refused(capsys, "No space left on device", "out_tif_preview.png")
+    assert not (setup / "out.tif").exists() and not (setup / "out_tif_preview.png").exists()
 
 
 def _full_disk_open(victim):

@@ -231,3 +231,12 @@ def test_curve_summary_averages_each_subsets_pooled_statistics():
     assert rows[0]["median"] == pytest.approx(2.5) and rows[0]["median_sd"] == pytest.approx(0.5)
     assert rows[1]["mean"] == pytest.approx(1.5) and rows[1]["mean_sd"] == pytest.approx(0.5)
     assert rows[1]["median"] == pytest.approx(1.0) and rows[1]["median_sd"] == pytest.approx(0.0)
+
+
+def test_pretraining_shows_its_progress(tmp_path, monkeypatch, capsys):
+    """Rendering and preparing the images each show a bar counting them to the total, on stderr."""
+    monkeypatch.setenv("CCJAX_CACHE", str(tmp_path / "cache"))  # not read from an earlier run's cache
+    setting = Pretraining(CAMERA, images=6, height=8, width=8, patches=4, seed=11)
+    render_examples(setting, Preprocessing.parse("pixels"), "image", progress=True)
+    err = capsys.readouterr().err
+    assert "render" in err and "prepare" in err and "6/6" in err

@@ -14,10 +14,12 @@ def add_correct(sub) -> None:
         "correct",
         help="correct linear images to the canonical light",
         description="Estimate each image's light (--method, or a trained --model), map it to the canonical light "
-        "with a diagonal map and write the corrected image and an 8-bit sRGB preview; pixels with a clipped "
-        "channel come out white. By default the corrected image is linear 16-bit camera RGB under the canonical "
+        "with a diagonal map and write the corrected image and an 8-bit sRGB preview (--preview none: no "
+        "preview); pixels with a clipped channel (the clip level estimation uses: 0.98 of full scale, or "
+        "--saturation) come out white. By default the corrected image is linear 16-bit camera RGB under the canonical "
         "light (the camera's view of daylight white, which is not grey: in an image viewer it looks green and "
-        "dark), for further processing; --srgb 8 or 16 writes it for viewing (--srgb 8: .png or .jpg). IN and "
+        "dark), for further processing; --srgb 8 or 16 writes it for viewing (--srgb 8: .png or .jpg; a folder "
+        "becomes JPEGs under the inputs' stems). IN and "
         "OUT are files, or folders (OUT and the folder of a single OUT are created). Inputs are never replaced; "
         "existing outputs need --overwrite; every file is written to a temporary name and renamed into place.",
     )
@@ -27,9 +29,34 @@ def add_correct(sub) -> None:
     )
     image_options.model_arguments(p, "correct")
     p.add_argument(
+        "--light",
+        type=light_values,
+        default=None,
+        metavar="R,G,B",
+        help="correct with this known light instead of an estimate: camera RGB of white under it (a grey card "
+        "read elsewhere; any scale), for every image",
+    )
+    p.add_argument(
+        "--white-region",
+        type=region_values,
+        default=None,
+        metavar="X,Y,W,H",
+        help="correct with the light of a white or grey surface in each image (a grey card): the mean of the usable "
+        "pixels of this rectangle, X,Y its top-left pixel (column, row) and W,H its size, in the image as read "
+        "(upright; a raw file's half-size development, as estimation reads it)",
+    )
+    p.add_argument(
         "--preview",
         default=None,
-        help="preview path for a single image (default: OUTPUT stem + '_preview.png')",
+        help="the 8-bit sRGB preview's path for a single image, or 'none' for no previews (default: beside "
+        "each output, named after its full name: a.png gives a_preview.png, a.jpg a_jpg_preview.png)",
+    )
+    p.add_argument(
+        "--preview-size",
+        type=int,
+        default=None,
+        metavar="PIXELS",
+        help="a preview's longest side at most, reduced by block means in linear light (default 1024; 0: full size)",
     )
     p.add_argument(
         "--sharpening",
@@ -51,22 +78,6 @@ def add_correct(sub) -> None:
     p.set_defaults(func=run_correct)
 
 
-def folder_outputs(paths, target):
-    """Output and preview paths in folder ``target`` for each input, no two alike
-    (:func:`ccjax.runs.folders.folder_outputs`).
-
-    Arguments:
-        paths: the input files.
-        target: the output folder.
-
-    Returns:
-        ``(outputs, previews)``, lists of paths.
-    """
-    from ccjax.runs.folders import folder_outputs as outputs
-
-    return outputs(paths, target)
-
-
 def correct_outputs(args):
     """Validate ``ccjax correct``'s inputs and outputs before any work.
 
@@ -74,7 +85,8 @@ def correct_outputs(args):
         args: the parsed arguments (``input``, ``output``, ``preview``, ``overwrite``).
 
     Returns:
-        ``(paths, outputs, previews)``: the input files and, for each, its output and preview.
+        ``(paths, outputs, previews)``: the input files and, for each, its output and preview
+        (previews None with ``--preview none``).
 
     Raises:
         ValueError: an output would replace an input or another output, exists without
@@ -84,23 +96,28 @@ def correct_outputs(args):
 
     from ccjax import io
     from ccjax.io.outputs import check_output_folder, path_key
+    from ccjax.runs.folders import folder_outputs, preview_path
 
     source, target = Path(args.input), Path(args.output)
+    no_preview = args.preview is not None and args.preview.lower() == "none"
     if source.is_dir():
         if path_key(source) == path_key(target):
             raise ValueError(f"output: {args.output} is the input folder {args.input}; its images would be replaced")
         if target.exists() and not target.is_dir():
             raise ValueError(f"output: {target} exists and is not a folder")
-        if args.preview:
-            raise ValueError("--preview: names one image's preview; with a folder the previews go beside the outputs")
+        if args.preview and not no_preview:
+            raise ValueError(
+                "--preview: names one image's preview; with a folder the previews go beside the outputs (or give "
+                "--preview none)"
+            )
         paths = io.list_images([source])
-        outputs, previews = folder_outputs(paths, target)
+        outputs, previews = folder_outputs(paths, target, suffix=".jpg" if args.srgb == 8 else None)
         check_output_folder(target, "output")
     else:
         if not source.exists():
             raise FileNotFoundError(f"input: {source} does not exist")
         paths, outputs = [source], [target]
-        previews = [Path(args.preview) if args.preview else target.with_name(f"{target.stem}_preview.png")]
+        previews = [Path(args.preview) if args.preview else preview_path(target)]
         if target.is_dir():
             raise ValueError(f"output: {target} is a folder; give a .png, .tif or .tiff file name")
         if target.suffix.lower() in JPEG_SUFFIXES and args.srgb != 8:
@@ -111,11 +128,14 @@ def correct_outputs(args):
         if target.suffix.lower() not in OUTPUT_SUFFIXES + JPEG_SUFFIXES:
             raise ValueError(f"output: {target} must end in .png, .tif or .tiff (or .jpg/.jpeg with --srgb 8)")
         check_output_folder(target.parent, "output", written=target)  # created when missing, as OUT folders are
-        if previews[0].suffix.lower() != ".png":
-            raise ValueError(f"--preview: {previews[0]} must end in .png")
-    written = [("output", output) for output in outputs] + [("--preview", preview) for preview in previews]
+        if not no_preview and previews[0].suffix.lower() != ".png":
+            raise ValueError(f"--preview: {previews[0]} must end in .png (or give --preview none)")
+    if args.preview_size is not None and args.preview_size < 0:
+        raise ValueError(f"--preview-size: expected a number of pixels >= 0 (0: full size), got {args.preview_size}")
+    shown = [] if no_preview else previews
+    written = [("output", output) for output in outputs] + [("--preview", preview) for preview in shown]
     check_outputs(paths + sharpening_inputs(args), written, overwrite=args.overwrite)
-    return paths, outputs, previews
+    return paths, outputs, None if no_preview else previews
 
 
 def sharpening_inputs(args) -> list:
@@ -125,6 +145,58 @@ def sharpening_inputs(args) -> list:
 
 SHARPENING_BYTES = 1 << 16
 """Largest ``--sharpening`` file read (a 3x3 matrix is a few hundred bytes as text or .npy)."""
+
+
+NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+"""A decimal number as people write one (Python's ``float`` also takes ``1_0``, ``nan``, ``inf``)."""
+
+
+def light_values(text: str) -> tuple[float, float, float]:
+    """``--light R,G,B``: three non-negative decimal numbers, not all zero.
+
+    Arguments:
+        text: the option's value.
+
+    Returns:
+        The three numbers.
+
+    Raises:
+        argparse.ArgumentTypeError: any other text.
+    """
+    import argparse
+    import re
+
+    parts = [part.strip() for part in text.split(",")]
+    if len(parts) != 3 or not all(re.fullmatch(NUMBER, part) for part in parts):
+        raise argparse.ArgumentTypeError(f"expected three numbers R,G,B, got {text!r}")
+    values = tuple(float(part) for part in parts)
+    if min(values) < 0 or max(values) <= 0:
+        raise argparse.ArgumentTypeError(f"expected non-negative numbers, not all zero, got {text!r}")
+    return values[0], values[1], values[2]
+
+
+def region_values(text: str) -> tuple[int, int, int, int]:
+    """``--white-region X,Y,W,H``: four integers, X,Y >= 0 and W,H >= 1.
+
+    Arguments:
+        text: the option's value.
+
+    Returns:
+        The four integers.
+
+    Raises:
+        argparse.ArgumentTypeError: any other text.
+    """
+    import argparse
+    import re
+
+    parts = [part.strip() for part in text.split(",")]
+    if len(parts) != 4 or not all(re.fullmatch(r"\d+", part) for part in parts):
+        raise argparse.ArgumentTypeError(f"expected four whole numbers X,Y,W,H, got {text!r}")
+    x, y, width, height = (int(part) for part in parts)
+    if width < 1 or height < 1:
+        raise argparse.ArgumentTypeError(f"expected a width and height of at least 1 pixel, got {text!r}")
+    return x, y, width, height
 
 
 def read_sharpening(path):
@@ -170,20 +242,59 @@ def read_sharpening(path):
     return sharpening
 
 
+def notice_colours(world, paths, args, model_camera: str | None) -> None:
+    """One line on stderr when the sRGB colours (an sRGB output, the previews) of files without a
+    colour matrix of their own come from a camera nobody named: the default camera's curves.
+
+    Arguments:
+        world: the world the correction uses.
+        paths: the input files (raw files carry their own matrix).
+        args: the parsed arguments (``--camera``, ``--world``, ``--srgb``, ``--preview``).
+        model_camera: the camera a ``--model`` file's record names (None: none, or ``--method``).
+    """
+    import sys
+    from pathlib import Path
+
+    from ccjax.io import RAW_SUFFIXES
+
+    shown = args.srgb is not None or not (args.preview is not None and args.preview.lower() == "none")
+    plain = [path for path in paths if Path(path).suffix.lower() not in RAW_SUFFIXES]
+    if shown and plain and args.camera is None and model_camera is None and args.world == "default":
+        print(
+            f"ccjax correct: notice: the sRGB colours (--srgb output, previews) use the curves of "
+            f"{world.camera.name}, the default camera; give --camera NAME for the camera that took the images "
+            "(raw files use their own colour matrix)",
+            file=sys.stderr,
+        )
+
+
 def run_correct(args) -> int:
     import numpy as np
 
     from ccjax import runs
-    from ccjax.cli.estimate import STATUS_WORDS, unit_light
-    from ccjax.estimators import registry
+    from ccjax._colour import unit_light
+    from ccjax.cli.estimate import STATUS_WORDS
+    from ccjax.estimators import known, registry
     from ccjax.estimators.base import Status
+    from ccjax.runs.folders import PREVIEW_SIZE
     from ccjax.runs.sources import raise_failures
 
-    if (args.method is None) == (args.model is None):
-        raise ValueError("--method, --model: give exactly one (a method label, or a trained model file)")
+    given = [args.method, args.model, args.light, args.white_region]
+    if sum(value is not None for value in given) != 1:
+        raise ValueError(
+            "--method, --model, --light, --white-region: give exactly one (a method label, a trained model file, "
+            "a known light, or a grey card's rectangle)"
+        )
     image_options.check_labels([] if args.method is None else [args.method], args)
     paths, outputs, previews = correct_outputs(args)
-    if args.model is None:
+    camera = None
+    if args.light is not None or args.white_region is not None:
+        world = image_options.image_world(args)
+        if args.light is not None:
+            method = known.known_light(args.light)
+        else:
+            method = known.white_region(args.white_region, world.canonical_white)
+    elif args.model is None:
         registry.refuse_untrained(args.method, "--method")
         image_options.require_camera([args.method], args)
         method, world = str(args.method), image_options.image_world(args)
@@ -195,6 +306,11 @@ def run_correct(args) -> int:
         world = store.world("default", camera, seed=args.seed)
     sharpening = read_sharpening(args.sharpening)
     source = image_options.image_source(paths, args)
+    if isinstance(method, known.WhiteRegion):
+        for path, size in zip(source.paths, source.sizes, strict=True):
+            if size is not None:  # a bad header is the file's own failure
+                known.check_region(method, size[0], size[1], str(path))
+    notice_colours(world, paths, args, model_camera=None if args.model is None else camera)
     kind = "linear 16-bit camera RGB under the canonical light" if args.srgb is None else f"{args.srgb}-bit sRGB"
 
     def report(index, estimate, output, preview) -> None:
@@ -204,14 +320,19 @@ def run_correct(args) -> int:
         # above the progress bar rather than into it.
         rgb = ", ".join(f"{v:.5f}" for v in unit_light([float(v) for v in np.asarray(estimate.illuminant)]))
         status = STATUS_WORDS[Status(int(estimate.status)).name.lower()]
-        line = f"({status}) -> {output} ({kind}), {preview} (sRGB preview)"
+        if status == "estimated" and args.light is not None:
+            status = "given"
+        elif status == "estimated" and args.white_region is not None:
+            status = "from the white region"
+        line = f"({status}) -> {output} ({kind})" + ("" if preview is None else f", {preview} (sRGB preview)")
         tqdm.write(f"{source.paths[index]}: light [{rgb}] {line}")
 
     run = runs.correct_folder(
         source,
         method,
         outputs,
-        previews=previews,
+        previews=False if previews is None else previews,
+        preview_size=PREVIEW_SIZE if args.preview_size is None else args.preview_size or None,
         world=world,
         sharpening=sharpening,
         preprocessing=args.preprocessing,

@@ -76,7 +76,7 @@ def run_estimate(args) -> int:
     records = [
         {
             "path": r["path"],
-            "illuminant": unit_light(r["illuminant"]),
+            "illuminant": r["illuminant"],
             "rg": r["rg"],
             "ok": r["ok"],
             "status": STATUS_WORDS[r["status"]],
@@ -103,21 +103,6 @@ def run_estimate(args) -> int:
 
 STATUS_WORDS = {"estimated": "estimated", "relaxed": "relaxed", "empty_set": "fell back", "no_data": "no usable pixels"}
 """How ``ccjax estimate`` names each :class:`ccjax.Status` (its ``name.lower()``) in tables and JSON."""
-
-
-def unit_light(rgb: list[float]) -> list[float]:
-    """``rgb`` scaled so that its largest channel is 1 (the scale of ccjax's lights): a relaxed
-    gamut solution's raw magnitude (hundreds) says nothing about the light's brightness, and a
-    photograph's exposure leaves that brightness unknown for every method.
-
-    Arguments:
-        rgb: an estimate's camera RGB, non-negative.
-
-    Returns:
-        The scaled RGB (as given when every channel is 0).
-    """
-    top = max(rgb)
-    return [value / top for value in rgb] if top > 0 else list(rgb)
 
 
 def warn_not_estimated(records: list[dict]) -> None:

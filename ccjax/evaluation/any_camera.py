@@ -17,34 +17,10 @@ import numpy as np
 from ccjax.evaluation.folders import FolderData
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
 
-__all__ = ["ANY_CAMERA", "kept_out", "refuse_unbound", "train_any_camera"]
+__all__ = ["ANY_CAMERA", "kept_out", "train_any_camera"]
 
 ANY_CAMERA = "any-camera"
 """The label of the camera-conditioned estimator."""
-
-
-def refuse_unbound(method: str, record: dict, folders: Sequence) -> str | None:
-    """Refuse a camera-conditioned model file (record ``conditioned: true``) on a folder without a
-    camera (it is bound to the folder's camera at load).
-
-    Arguments:
-        method: the model file.
-        record: its record.
-        folders: the folders (:class:`~ccjax.evaluation.FolderSet`) it will score.
-
-    Returns:
-        The camera the record names (None for a conditioned model, or one trained without curves).
-
-    Raises:
-        ValueError: naming the model and the folders without a camera.
-    """
-    without = [folder.label for folder in folders if folder.camera is None]
-    if record.get("conditioned") is True and without:
-        raise ValueError(
-            f"methods: model {method} serves any camera given its name (any-camera); name the camera of "
-            f"{', '.join(without)} (--camera or --camera-for)"
-        )
-    return record.get("camera")
 
 
 def kept_out(target: str, cameras: Sequence[str | None]) -> list[int]:

@@ -392,7 +392,7 @@ def train_pooled(
     )
     if rendered:
         pretraining = learning.Pretraining(camera=pool.target, images=rendered, seed=options.seed)
-        synthetic = learning.render_examples(pretraining, rule, start.input_kind, dark=read.dark)
+        synthetic = learning.render_examples(pretraining, rule, start.input_kind, dark=read.dark, progress=progress)
         examples = learning.Examples(
             jnp.concatenate([examples.x, synthetic.x]),
             jnp.concatenate([examples.mask, synthetic.mask]),

@@ -179,9 +179,10 @@ class ImageResults:
         """The results as records.
 
         Returns:
-            One dict per image and method (path, method, illuminant, rg, ok, status, angular error).
+            One dict per image and method (path, method, illuminant with its largest channel 1, rg, ok,
+            status, angular error).
         """
-        from ccjax._colour import rg_numpy
+        from ccjax._colour import rg_numpy, unit_light
 
         rows = []
         for method, estimates in self.estimates.items():
@@ -193,7 +194,7 @@ class ImageResults:
                     {
                         "path": path,
                         "method": method,
-                        "illuminant": [float(v) for v in rgb],
+                        "illuminant": unit_light([float(v) for v in rgb]),
                         "rg": [float(v) for v in rg_numpy(np.asarray(rgb, np.float64))],
                         "ok": bool(ok),
                         **({} if status is None else {"status": status}),

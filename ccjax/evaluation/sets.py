@@ -17,9 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ccjax.evaluation.any_camera import refuse_unbound
 from ccjax.evaluation.folders import (
-    MODEL_SUFFIX,
     TRAINED_SUFFIX,
     FolderData,
     FolderEvaluation,
@@ -28,6 +26,7 @@ from ccjax.evaluation.folders import (
     read_folder,
     score_folder,
 )
+from ccjax.evaluation.methods import check_methods
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
 from ccjax.evaluation.protocols import AbstractProtocol
 from ccjax.world import World
@@ -322,36 +321,6 @@ def save_fold_models(
     return written
 
 
-def check_model_cameras(methods: Sequence[str], folders: Sequence[FolderSet]) -> None:
-    """Refuse a trained model file scored on a folder taken with another camera than the one its
-    record names (a model learns its camera's raw space; another camera's is another problem).
-
-    Arguments:
-        methods: labels and model files.
-        folders: the folders, each with its camera (None: not given, not checked).
-
-    Returns:
-        None.
-
-    Raises:
-        ValueError: naming ``methods``, the model, its camera and the folder's.
-    """
-    from ccjax._cache import read_model_metadata
-
-    for method in methods:
-        if not method.endswith(MODEL_SUFFIX):
-            continue
-        if not pathlib.Path(method).is_file():
-            raise ValueError(f"methods: no such model file: {method}")
-        camera = refuse_unbound(method, read_model_metadata(pathlib.Path(method)), folders)
-        for folder in folders:
-            if folder.camera is not None and camera is not None and folder.camera != camera:
-                raise ValueError(
-                    f"methods: model {method} was trained for the {camera}, but folder {folder.label}'s camera is "
-                    f'the {folder.camera}; train one for it (ccjax train ... --target-camera "{folder.camera}")'
-                )
-
-
 def evaluate_data(
     data: FolderData,
     training: Sequence[FolderData],
@@ -426,11 +395,9 @@ def evaluate(
         :class:`SetsEvaluation`: one row set per scored folder, the geometric means.
 
     Raises:
-        ValueError: no folder, two folders with one name, an untrained learned label among ``methods``
-            (:func:`ccjax.estimators.registry.refuse_untrained`: give it to the protocol to train), or a
-            folder's evaluation's refusal (prefixed with it).
+        ValueError: no folder, two folders with one name, a method :func:`check_methods` refuses, or
+            a folder's evaluation's refusal (prefixed with it).
     """
-    from ccjax.estimators import registry
     from ccjax.runs import store
 
     read, options = read or ReadOptions(), options or TrainingOptions()
@@ -440,8 +407,7 @@ def evaluate(
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise ValueError(f"folders: each folder needs its own name, got {', '.join(repeated)} more than once")
-    check_model_cameras(methods, folders)
-    registry.refuse_untrained([method for method in methods if not method.endswith(MODEL_SUFFIX)], "methods")
+    check_methods(methods, folders)
     notes: list[str] = []
 
     def where(folder: FolderSet) -> str:  # one folder's errors need no name

@@ -1,4 +1,5 @@
-"""JPEG files: the header's layout and the whole, upright pixels, or a clear error.
+"""JPEG files: the header's layout and the whole, upright pixels, or a clear error; writing
+them with their colour space and their input's EXIF.
 
 Decoded by Pillow (libjpeg), with its own pixel limit lifted: the caller's budget
 (:data:`ccjax.limits.PIXELS`, ``--max-pixels``) is checked from the header first, and Pillow's
@@ -6,23 +7,49 @@ fixed 179 MP limit must not override it. A file whose data ends early is an erro
 would fill the missing rows with grey and call the image read). The EXIF orientation is applied
 (a camera held upright writes its rows sideways and says so in the tag), so a corrected image
 comes out as the photographer saw it.
+
+Written by Pillow too, which embeds an ICC profile and EXIF (libjpeg through imagecodecs writes
+neither): an sRGB JPEG carries the sRGB profile and EXIF ColorSpace 1, and the input's EXIF
+(:func:`upright_exif`: camera, times, exposure, GPS) with its orientation reset to 1, since the
+pixels written are already upright.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
+from ccjax.io.icc import srgb_profile
+
 ORIENTATION_TAG = 0x0112
 """EXIF's orientation tag: 1 upright; 2-8 mirrored and/or rotated (5-8 swap width and height)."""
+EXIF_IFD, GPS_IFD = 0x8769, 0x8825
+"""The EXIF and GPS sub-directories' tags in the first image directory."""
+CARRIED_TAGS = (0x010E, 0x010F, 0x0110, 0x0132, 0x013B, 0x8298)
+"""First-directory tags carried to an output: ImageDescription, Make, Model, DateTime, Artist,
+Copyright. The others describe the input's own layout (strips, sizes, resolution of a TIFF)."""
+DROPPED_EXIF_TAGS = (0xA002, 0xA003, 0xA005)
+"""EXIF-directory tags not carried: PixelX/YDimension (the output's own size is written) and the
+interoperability directory's offset (it points into the input file)."""
+MAKER_NOTE, COLOR_SPACE = 0x927C, 0xA001
+EXIF_FORMATS = ("JPEG", "MPO", "TIFF")
+"""Pillow's formats whose EXIF :func:`upright_exif` reads from the header (TIFF covers DNG and
+the TIFF-based raw files Pillow opens; a PNG's ``eXIf`` chunk may follow the image data, and
+Pillow would decode every pixel to find it)."""
+MAX_EXIF_BYTES = 65000
+"""The most EXIF bytes :func:`upright_exif` gives: a JPEG's APP1 segment holds 65533 (with
+``Exif\\0\\0``), less room for the tags :func:`save_jpeg` adds. A maker note that would
+overflow it is dropped."""
 
 
 @contextlib.contextmanager
-def _opened(path: Path) -> Iterator:
-    """The file opened by Pillow as a JPEG, with Pillow's own pixel limit lifted for this open."""
+def _pillow(path: Path) -> Iterator:
+    """The file opened by Pillow (lazily: the header), with Pillow's own pixel limit lifted for this open."""
     from PIL import Image
 
     limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
@@ -31,7 +58,15 @@ def _opened(path: Path) -> Iterator:
     finally:
         Image.MAX_IMAGE_PIXELS = limit
     with image:
-        if image.format != "JPEG":
+        yield image
+
+
+@contextlib.contextmanager
+def _opened(path: Path) -> Iterator:
+    """The file opened by Pillow as a JPEG, with Pillow's own pixel limit lifted for this open.
+    A multi-picture JPEG (``MPO``: cameras append previews so) gives its first, primary image."""
+    with _pillow(path) as image:
+        if image.format not in ("JPEG", "MPO"):
             raise ValueError(f"not a JPEG file ({image.format})")
         yield image
 
@@ -134,4 +169,79 @@ def orient(pixels: np.ndarray, orientation: int) -> np.ndarray:
     return pixels
 
 
-__all__ = ["ORIENTATION_TAG", "jpeg_layout", "orient", "read_jpeg"]
+def upright_exif(path: str | os.PathLike) -> bytes | None:
+    """An input's EXIF, ready for a JPEG output of its upright pixels: the camera and image tags
+    of :data:`CARRIED_TAGS`, the EXIF directory (DateTimeOriginal, exposure, lens; less
+    :data:`DROPPED_EXIF_TAGS`) and the GPS directory, with Orientation 1 (:func:`read_jpeg`
+    applied the input's orientation to the pixels; the tag must not rotate them again).
+
+    Arguments:
+        path: the input: a JPEG, or a TIFF or DNG where Pillow reads its EXIF.
+
+    Returns:
+        The EXIF block (``Exif\\0\\0`` and a TIFF structure, as :func:`save_jpeg` takes it), or None
+        when the file has none Pillow can read.
+    """
+    from PIL import Image
+
+    try:
+        with _pillow(Path(path)) as image:
+            if image.format not in EXIF_FORMATS:
+                return None
+            source = image.getexif()
+            tags = {tag: source[tag] for tag in CARRIED_TAGS if tag in source}
+            exif = {tag: value for tag, value in source.get_ifd(EXIF_IFD).items() if tag not in DROPPED_EXIF_TAGS}
+            gps = dict(source.get_ifd(GPS_IFD))
+        if not (tags or exif or gps):
+            return None
+        out = Image.Exif()
+        out.update(tags)
+        out[ORIENTATION_TAG] = 1
+        if gps:
+            out[GPS_IFD] = gps
+        if exif:
+            out[EXIF_IFD] = exif
+        blob = out.tobytes()
+        if len(blob) > MAX_EXIF_BYTES and exif.pop(MAKER_NOTE, None) is not None:
+            out[EXIF_IFD] = exif
+            blob = out.tobytes()
+    except Exception:  # metadata is carried at best: a file Pillow cannot parse has none to give
+        return None
+    return blob if len(blob) <= MAX_EXIF_BYTES else None
+
+
+def save_jpeg(
+    handle: BinaryIO, codes: np.ndarray, quality: int, *, srgb: bool = False, exif: bytes | None = None
+) -> None:
+    """Encode ``uint8`` RGB codes as a JPEG (Pillow, libjpeg) into an open file.
+
+    Arguments:
+        handle: a binary file open for writing.
+        codes: ``(H, W, 3)`` ``uint8``.
+        quality: libjpeg's 0-100 quality.
+        srgb: the codes are sRGB: embed the sRGB ICC profile (:func:`ccjax.io.icc.srgb_profile`)
+            and set EXIF ColorSpace to 1 (sRGB). False: neither, and no ColorSpace carried.
+        exif: an EXIF block to write (:func:`upright_exif`); its PixelX/YDimension are set to
+            the codes' size.
+
+    Returns:
+        None.
+    """
+    from PIL import Image
+
+    tags = Image.Exif()
+    if exif:
+        tags.load(exif)
+    if exif or srgb:
+        directory = dict(tags.get_ifd(EXIF_IFD))
+        directory.pop(COLOR_SPACE, None)
+        if srgb:
+            directory[COLOR_SPACE] = 1
+        directory[0xA002], directory[0xA003] = int(codes.shape[1]), int(codes.shape[0])
+        tags[EXIF_IFD] = directory
+    image = Image.fromarray(np.ascontiguousarray(codes))
+    options = {"icc_profile": srgb_profile()} if srgb else {}
+    image.save(handle, "JPEG", quality=quality, exif=tags.tobytes() if len(tags) else b"", **options)
+
+
+__all__ = ["ORIENTATION_TAG", "jpeg_layout", "orient", "read_jpeg", "save_jpeg", "upright_exif"]

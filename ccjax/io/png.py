@@ -22,6 +22,7 @@ import imagecodecs
 import numpy as np
 
 from ccjax.io.files import write_file
+from ccjax.io.icc import MAX_PROFILE_BYTES, icc_encoding
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 COMPRESSION_LEVEL = 6
@@ -117,8 +118,10 @@ LINEAR_GAMMA = 100000
 
 def png_encoding(path: str | os.PathLike) -> str | None:
     """What a PNG's ancillary chunks before its image data say about its tone curve: ``"sRGB"``
-    (an ``sRGB`` chunk), ``"gAMA <g>"`` (a file gamma other than 1), or None (no such chunk, or
-    gamma 1: linear). Only chunk headers are read (a seek past each chunk's data).
+    (an ``sRGB`` chunk), ``"gAMA <g>"`` (a file gamma other than 1), ``"sRGB (ICC profile ...)"``
+    (an ``iCCP`` profile describing sRGB-encoded RGB, :func:`ccjax.io.icc.icc_encoding`), or None
+    (no such chunk, gamma 1 or a linear profile: linear). Only chunk headers are read (a seek
+    past each chunk's data), and an ``iCCP`` chunk's data.
 
     Arguments:
         path: the file (its IHDR already checked, :func:`png_header`).
@@ -140,8 +143,24 @@ def png_encoding(path: str | os.PathLike) -> str | None:
                 (gamma,) = struct.unpack(">I", handle.read(4))
                 if gamma != LINEAR_GAMMA:
                     return f"gAMA {gamma / 1e5:g}"
+            if kind == b"iCCP" and length <= MAX_PROFILE_BYTES and (profile := _profile(handle.read(length))):
+                if (encoding := icc_encoding(profile)) is not None:
+                    return encoding
             offset += 12 + length
     return None
+
+
+def _profile(data: bytes) -> bytes:
+    """The ICC profile of an ``iCCP`` chunk's data (name, NUL, method 0, zlib stream), at most
+    :data:`~ccjax.io.icc.MAX_PROFILE_BYTES` of it (a small chunk can inflate to gigabytes); empty
+    when the data are not a readable profile."""
+    name_end = data.find(b"\0", 0, 80)
+    if name_end < 1 or data[name_end + 1 : name_end + 2] != b"\0":
+        return b""
+    try:
+        return zlib.decompressobj().decompress(data[name_end + 2 :], MAX_PROFILE_BYTES)
+    except zlib.error:
+        return b""
 
 
 def read_png(path: str | os.PathLike) -> np.ndarray:
@@ -171,7 +190,7 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
         raise ValueError(f"corrupt or truncated PNG ({error})") from None
 
 
-def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = True) -> None:
+def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = True, srgb: bool = False) -> None:
     """Write ``uint16`` or ``uint8`` ``(H, W, 3)`` as an RGB PNG, atomically
     (:func:`ccjax.io.files.write_file`: readers never see a partial file).
 
@@ -180,6 +199,9 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = 
         pixels: the file codes; 16-bit values are stored big-endian, as PNG requires.
         overwrite: replace a file already at ``path`` (else ``FileExistsError``:
             :func:`ccjax.io.outputs.put_in_place`).
+        srgb: the codes are sRGB-encoded: an ``sRGB`` chunk (rendering intent 0, perceptual) goes
+            before the image data, so viewers show the colours right and readers (ccjax's own
+            included) know the codes are not linear. False: no colour chunk (linear data).
 
     Raises:
         ValueError: ``pixels`` is not ``uint8``/``uint16`` ``(H, W, 3)`` with at least one pixel.
@@ -190,4 +212,12 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = 
     if pixels.size == 0:
         raise ValueError(f"pixels: a PNG needs at least one pixel, got shape {pixels.shape}")
     blob = bytes(imagecodecs.png_encode(np.ascontiguousarray(pixels), level=COMPRESSION_LEVEL))
+    if srgb:
+        at = len(PNG_SIGNATURE) + 25  # right after IHDR, before any PLTE or IDAT (PNG 1.2 §4.2.2.5)
+        blob = blob[:at] + _chunk(b"sRGB", b"\0") + blob[at:]
     write_file(path, blob, overwrite=overwrite)
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    """A PNG chunk: length, type, data, CRC of type and data."""
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(data, zlib.crc32(kind)))

@@ -105,11 +105,43 @@ def srgb_preview(rgb: ArrayLike, matrix: np.ndarray | None = None, percentile: f
     return srgb_preview_rows(lambda rows: rgb[rows], rgb.shape, matrix, percentile)
 
 
+def preview_factor(shape: tuple[int, ...], size: int | None) -> int:
+    """The block side by which a preview of an image of ``shape`` is reduced so that its longer
+    side is at most ``size`` (1: full size).
+
+    Arguments:
+        shape: the image's shape ``(H, W, ...)``.
+        size: the preview's longest side in pixels, or None for full size.
+
+    Returns:
+        The integer factor.
+
+    Raises:
+        ValueError: ``size`` is not a positive integer.
+    """
+    if size is None:
+        return 1
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise ValueError(f"size: expected a positive number of pixels or None, got {size!r}")
+    return max(1, -(-max(shape[0], shape[1]) // size))
+
+
+def _block_means(pixels: np.ndarray, factor: int) -> np.ndarray:
+    """Means of ``factor`` x ``factor`` blocks (the last row and column of blocks may be partial)."""
+    if factor == 1:
+        return pixels
+    rows, columns = np.arange(0, pixels.shape[0], factor), np.arange(0, pixels.shape[1], factor)
+    sums = np.add.reduceat(np.add.reduceat(pixels, rows, axis=0), columns, axis=1)
+    counts = np.diff([*rows, pixels.shape[0]])[:, None] * np.diff([*columns, pixels.shape[1]])[None, :]
+    return sums / counts[..., None].astype(pixels.dtype)
+
+
 def srgb_preview_rows(
     rows_of: Callable[[slice], np.ndarray],
     shape: tuple[int, ...],
     matrix: np.ndarray | None = None,
     percentile: float = 99.0,
+    size: int | None = None,
 ) -> np.ndarray:
     """:func:`srgb_preview` of an image given a piece of rows at a time (two passes: the exposure
     needs every pixel's brightest channel first), so a 48 MP image (or one computed piece by
@@ -119,21 +151,33 @@ def srgb_preview_rows(
         rows_of: the image's rows ``rows`` (a slice of the first axis) as linear camera RGB.
         shape: the image's shape ``(H, W, 3)``.
         matrix: camera -> linear sRGB (:func:`preview_matrix`); identity if None.
-        percentile: exposure: this percentile of the brightest channel becomes 1.
+        percentile: exposure: this percentile of the brightest channel (of the reduced image)
+            becomes 1.
+        size: the preview's longest side at most (pixels): the image is reduced by the smallest
+            integer factor that fits (:func:`preview_factor`), each preview pixel the mean of its
+            block in linear light; None: full size.
 
     Returns:
-        ``(H, W, 3)`` ``uint8`` sRGB (:func:`encode_srgb`).
+        ``(ceil(H / f), ceil(W / f), 3)`` ``uint8`` sRGB (:func:`encode_srgb`), ``f`` the factor.
     """
     transform = (np.eye(3, dtype=np.float32) if matrix is None else matrix).T
-    pieces = row_slices(tuple(shape))
-    brightest = np.empty(tuple(shape[:-1]), np.float32)
+    factor = preview_factor(shape, size)
+    height, width = -(-shape[0] // factor), -(-shape[1] // factor)
+    # Pieces of whole blocks: about CHUNK_VALUES values each, a multiple of ``factor`` rows.
+    step = factor * max(1, row_slices(tuple(shape))[0].stop // factor)
+    pieces = [slice(start, min(start + step, shape[0])) for start in range(0, shape[0], step)]
+
+    def reduced(rows: slice) -> np.ndarray:
+        return _block_means(np.asarray(rows_of(rows), np.float32), factor) @ transform
+
+    brightest = np.empty((height, width), np.float32)
     for rows in pieces:
-        brightest[rows] = (np.asarray(rows_of(rows), np.float32) @ transform).max(axis=-1)
+        brightest[rows.start // factor : -(-rows.stop // factor)] = reduced(rows).max(axis=-1)
     scale = max(float(np.percentile(brightest, percentile)), 1e-12)
     del brightest
-    encoded = np.empty(tuple(shape), np.uint8)
+    encoded = np.empty((height, width, 3), np.uint8)
     for rows in pieces:
-        encoded[rows] = encode_srgb((np.asarray(rows_of(rows), np.float32) @ transform) / scale, 8)
+        encoded[rows.start // factor : -(-rows.stop // factor)] = encode_srgb(reduced(rows) / scale, 8)
     return encoded
 
 

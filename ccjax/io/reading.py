@@ -15,14 +15,18 @@ demosaicing and noise smear saturation, below the file's last code, so pixels at
 alone miss most clipped ones), or exactly the ``saturation`` value when the caller gives one (the
 caller then knows the level).
 8-bit files (JPEG always) are refused unless ``decode_srgb`` or ``assume_linear``: they are
-almost always gamma-encoded, and estimating on gamma-encoded data is silently wrong; so are PNGs
-whose ``sRGB`` or ``gAMA`` chunk declares a gamma-encoded tone curve, unless ``assume_linear`` (a
-``gAMA`` of 1.0 declares linear data; an ``iCCP`` profile is not interpreted).
-``decode_srgb`` undoes the sRGB transfer curve (IEC 61966-2-1, colour-science's) of every file
-but raw ones: the result is linear in the light, though not camera data (the camera's curves are
-mixed into sRGB primaries and the clipped highlights stay clipped). A multi-page TIFF is refused
-rather than read as its first page, and a header claiming more than ``max_pixels`` pixels
-(default :data:`MAX_PIXELS`) before any decoding.
+almost always gamma-encoded, and estimating on gamma-encoded data is silently wrong; so are files
+whose tags declare a gamma-encoded tone curve (:func:`ccjax.io.srgb.declared_encoding`): a PNG's
+``sRGB`` chunk or ``gAMA`` other than 1.0, a PNG's ``iCCP`` or a TIFF's ICC profile describing
+sRGB (ccjax's own ``--srgb`` outputs carry such tags); a ``gAMA`` of 1.0 or a linear profile
+declares linear data.
+``decode_srgb`` undoes the sRGB transfer curve (IEC 61966-2-1, colour-science's) of the files that
+are sRGB-encoded, and only those: 8-bit files, JPEG, and files whose tags declare an encoding as
+above. A 16-bit or float file without such a tag is read as linear with or without it (a folder
+may mix JPEGs with linear 16-bit exports), as are raw files. The decoded result is linear in the
+light, not camera data (the camera's curves are mixed into sRGB primaries; highlights stay
+clipped). A multi-page TIFF is refused rather than read as its first page, and a header claiming
+more than ``max_pixels`` pixels (default :data:`MAX_PIXELS`) before any decoding.
 
 Alpha (RGBA PNG, RGB + extra-sample TIFF) is a mask: a pixel whose alpha is below full opacity
 (the format's maximum: 255, 65535, or 1.0 for float) is *transparent* and is marked in ``clipped``
@@ -45,8 +49,9 @@ import numpy as np
 
 from ccjax import limits
 from ccjax.io.jpeg import jpeg_layout, read_jpeg
-from ccjax.io.png import png_encoding, png_header, read_png
-from ccjax.io.srgb import decode_srgb_codes
+from ccjax.io.png import png_header, read_png
+from ccjax.io.raw import raw_layout, read_raw
+from ccjax.io.srgb import declared_encoding, decode_srgb_codes
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf", ".pef", ".srw", ".raw")
 """The suffixes read as camera raw files (lower case; read through ``rawpy``)."""
@@ -77,6 +82,10 @@ class LinearImage:
         bit_depth: 8 or 16 for integer files, 32/64 for float TIFF, 16 for raw.
         transparent: ``(H, W)`` True where the file's alpha is below full opacity (these pixels
             are also in ``clipped``); None for files without alpha.
+        camera_to_xyz: ``(3, 3)`` camera RGB (``rgb``'s unit scale) -> CIE XYZ for the D65
+            illuminant, ``xyz = camera_to_xyz @ rgb[y, x]``, from a raw file's own colour matrix
+            (:func:`ccjax.io.raw.camera_to_xyz`); None for other files and raw files without one.
+            :func:`ccjax.io.raw.camera_to_srgb` turns it into a corrected image's preview matrix.
     """
 
     rgb: np.ndarray
@@ -84,40 +93,12 @@ class LinearImage:
     path: str = ""
     bit_depth: int = 16
     transparent: np.ndarray | None = None
+    camera_to_xyz: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         """``(height, width)``."""
         return self.rgb.shape[:2]
-
-
-def _rawpy(path: Path):
-    """The rawpy module (the optional raw extra), or a ValueError naming ``path`` and the extra."""
-    try:
-        import rawpy  # pyright: ignore[reportMissingImports]  (the optional raw extra)
-    except ImportError:
-        raise ValueError(f"{path} is a camera raw file; install the raw extra (pip install 'ccjax[raw]')") from None
-    return rawpy
-
-
-def _read_raw(path: Path) -> np.ndarray:
-    """Camera-native linear RGB of a raw file, on LibRaw's scale (black 0, white 65535)."""
-    rawpy = _rawpy(path)
-    with rawpy.imread(str(path)) as raw:
-        # Camera-native RGB, no white balance, no colour matrix, linear, one pixel per Bayer quad
-        # (half_size: no demosaicing, so pixels are not interpolated across edges).
-        return raw.postprocess(
-            output_color=rawpy.ColorSpace.raw,
-            gamma=(1, 1),
-            no_auto_bright=True,
-            output_bps=16,
-            use_camera_wb=False,
-            use_auto_wb=False,
-            user_wb=[1.0, 1.0, 1.0, 1.0],
-            half_size=True,
-            user_flip=0,
-            adjust_maximum_thr=0.0,  # keep the camera's white level (LibRaw would lower it to the data's maximum)
-        )
 
 
 _UNSUPPORTED_PHOTOMETRIC = ("SEPARATED", "CIELAB", "ICCLAB", "ITULAB", "LOGL", "LOGLUV")
@@ -176,8 +157,9 @@ def _check_layout(
     return 8 * dtype.itemsize
 
 
-def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
-    """Shape (channels last) and sample type of a PNG, TIFF or raw file from its header alone."""
+def _header_layout(path: Path, raw_full_size: bool = False) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape (channels last) and sample type of a PNG, TIFF or raw file from its header alone
+    (a raw file's as :func:`read_image` develops it with ``raw_full_size``)."""
     suffix = path.suffix.lower()
     if suffix == ".png":
         header = png_header(path)
@@ -191,9 +173,7 @@ def _header_layout(path: Path) -> tuple[tuple[int, ...], np.dtype]:
     if suffix in JPEG_SUFFIXES:
         return jpeg_layout(path)
     if suffix in RAW_SUFFIXES:
-        with _rawpy(path).imread(str(path)) as raw:
-            sizes = raw.sizes
-            return (sizes.height // 2, sizes.width // 2, 3), np.dtype(np.uint16)
+        return raw_layout(path, raw_full_size)
     raise ValueError(f"unsupported file type {suffix!r}; expected one of {', '.join(IMAGE_SUFFIXES)}")
 
 
@@ -235,10 +215,14 @@ class ImageInfo:
 
     Attributes:
         path: the file.
-        height, width: the size in pixels (raw files: half the sensor's visible size, as
-            :func:`read_image` develops them one pixel per Bayer quad).
+        height, width: the size in pixels (raw files: upright, half the sensor's visible size,
+            as :func:`read_image` develops them one pixel per Bayer quad, or the full size with
+            ``raw_full_size``).
         channels: 3 (RGB) or 4 (RGB + alpha).
         bit_depth: bits per sample as :func:`read_image` will see them.
+        encoding: why the codes are sRGB-encoded (``"8-bit"``, ``"JPEG"``, or what the file's
+            tags declare, :func:`ccjax.io.srgb.declared_encoding`), or None: linear data, which
+            ``decode_srgb`` leaves as they are.
     """
 
     path: str
@@ -246,6 +230,7 @@ class ImageInfo:
     width: int
     channels: int
     bit_depth: int
+    encoding: str | None = None
 
 
 def probe_image(
@@ -256,6 +241,7 @@ def probe_image(
     assume_linear: bool = False,
     max_pixels: int | None = MAX_PIXELS,
     decode_srgb: bool = False,
+    raw_full_size: bool = False,
 ) -> ImageInfo:
     """Check that :func:`read_image` can read a file, from its header alone (no pixel decoding).
 
@@ -266,8 +252,9 @@ def probe_image(
 
     Arguments:
         path: the file.
-        black_level, saturation, assume_linear, decode_srgb, max_pixels: as :func:`read_image` (so a command
-            can pass the same options to both); the saturation level must lie above the black level.
+        black_level, saturation, assume_linear, decode_srgb, max_pixels, raw_full_size: as :func:`read_image`
+            (so a command can pass the same options to both); the saturation level must lie above the
+            black level.
 
     Returns:
         An :class:`ImageInfo`.
@@ -281,19 +268,25 @@ def probe_image(
     _check_file(path, "image")
     suffix = path.suffix.lower()
     try:
-        shape, dtype = _header_layout(path)
+        shape, dtype = _header_layout(path, raw_full_size)
     except ValueError as error:
         raise ValueError(f"image: cannot read {path}: {error}") from None
     except Exception as error:  # a decoder's own exception types: report them the same way
         raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
     bit_depth = _check_layout(path, shape, dtype, assume_linear, decode_srgb)
     check_pixels(path, shape[0], shape[1], max_pixels)
-    if suffix == ".png" and not (assume_linear or decode_srgb) and (encoding := png_encoding(path)) is not None:
+    try:
+        encoding = declared_encoding(path)
+    except Exception as error:  # a decoder's own exception types: report them as above
+        raise ValueError(f"image: cannot read {path}: {type(error).__name__}: {error}") from None
+    if encoding is not None and not (assume_linear or decode_srgb):
         raise ValueError(
             f"image: {path} is tagged {encoding}: its codes are gamma-encoded, not linear camera data. Use a "
-            "linear file (or raw), pass --decode-srgb to undo the sRGB curve, or --assume-linear if it really "
-            "is linear"
+            "linear file (or raw), pass --decode-srgb (decode_srgb) to undo the sRGB curve, or --assume-linear "
+            "(assume_linear) if it really is linear"
         )
+    if encoding is None:  # JPEG and 8-bit files are sRGB-encoded without saying so
+        encoding = "JPEG" if suffix in JPEG_SUFFIXES else "8-bit" if dtype == np.uint8 else None
     if suffix in RAW_SUFFIXES:
         black_level, full_scale = 0.0, 65535.0  # LibRaw's scale (see read_image)
     else:
@@ -301,7 +294,7 @@ def probe_image(
     level = float(saturation if saturation is not None else full_scale)
     if not level > black_level:
         raise ValueError(f"saturation: {level} must be above the black level {black_level}")
-    return ImageInfo(path=str(path), height=shape[0], width=shape[1], channels=shape[-1], bit_depth=bit_depth)
+    return ImageInfo(str(path), shape[0], shape[1], shape[-1], bit_depth, encoding)
 
 
 def read_image(
@@ -312,9 +305,10 @@ def read_image(
     assume_linear: bool = False,
     max_pixels: int | None = MAX_PIXELS,
     decode_srgb: bool = False,
+    raw_full_size: bool = False,
 ) -> LinearImage:
     """Read a linear image (16-bit PNG, TIFF, or camera raw with the ``raw`` extra; with
-    ``decode_srgb`` also sRGB-encoded PNG, TIFF and JPEG files).
+    ``decode_srgb`` also sRGB-encoded PNG, TIFF and JPEG files, decoded to linear).
 
     Arguments:
         path: the file.
@@ -324,37 +318,47 @@ def read_image(
             the format's maximum, 65535 for 16-bit, 255 for 8-bit, 1.0 for float TIFF, LibRaw's
             white level for raw). Given, pixels with any channel at or above it are clipped;
             by default those with any channel at or above :data:`CLIP_FRACTION` (0.98) of it.
-        assume_linear: accept 8-bit files as linear data (otherwise they are refused).
+        assume_linear: accept 8-bit and gamma-tagged files as linear data (else they are refused).
         max_pixels: the pixel budget: a file whose header claims more pixels is refused before
             its pixels are decoded (default :data:`MAX_PIXELS`, 100 MP; None: no limit).
-        decode_srgb: the file (not raw) is sRGB-encoded: its codes, divided by the format's
-            maximum, are decoded with the sRGB curve (module docstring); clipping is judged on the
-            codes as without it. 8-bit files and JPEG are accepted.
+        decode_srgb: decode sRGB-encoded files: 8-bit files, JPEG, and files whose tags declare
+            a gamma-encoded tone curve (an ``sRGB`` or non-1 ``gAMA`` PNG chunk, an sRGB ICC
+            profile: :attr:`ImageInfo.encoding`) have their codes, divided by the format's
+            maximum, decoded with the sRGB curve (module docstring); clipping is judged on the
+            codes as without it. A 16-bit or float file without such a tag, and a raw file, is
+            read as linear all the same.
+        raw_full_size: develop a raw file at the sensor's full size (demosaiced; for writing a
+            corrected image at the camera's resolution) instead of the default one pixel per
+            Bayer quad, whose channels are all measured, none interpolated: the unmixed pixels the
+            thesis' estimators assume, so keep the default for estimation. Raw files are turned
+            upright by their orientation at either size (:mod:`ccjax.io.raw`).
 
     Returns:
         A :class:`LinearImage`.
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: unreadable, not RGB, empty, over the pixel budget, 8-bit without
-            ``assume_linear`` or ``decode_srgb``, or every pixel clipped; the message names the file.
+        ValueError: unreadable, not RGB, empty, over the pixel budget, 8-bit or tagged as
+            gamma-encoded without ``assume_linear`` or ``decode_srgb``, or every pixel clipped;
+            the message names the file.
     """
     path = Path(path)
     # The header first: nothing is decoded (or allocated) for a file it refuses.
-    probe_image(
+    info = probe_image(
         path,
         black_level=black_level,
         saturation=saturation,
         assume_linear=assume_linear,
         max_pixels=max_pixels,
         decode_srgb=decode_srgb,
+        raw_full_size=raw_full_size,
     )
-    default_saturation = None
+    default_saturation, camera_to_xyz = None, None
     try:
         if path.suffix.lower() in RAW_SUFFIXES:
             # LibRaw has subtracted the black level and scaled the white level to 65535 (give or
             # take its rounding: a saturated pixel can come out as 65534, well above the clip level).
-            pixels, black_level, default_saturation = _read_raw(path), 0.0, 65535.0
+            (pixels, camera_to_xyz), black_level, default_saturation = read_raw(path, raw_full_size), 0.0, 65535.0
         else:
             pixels = _read_pixels(path)
     except ValueError as error:
@@ -391,7 +395,7 @@ def read_image(
             + (", or transparent)" if transparent is not None else ")")
         )
     # One float32 copy, scaled in place: the file's codes and this copy are the only full-size arrays.
-    if decode_srgb and path.suffix.lower() not in RAW_SUFFIXES:
+    if decode_srgb and info.encoding is not None:
         # Decoded on the format's scale (sRGB codes run from 0 to the maximum), before the levels.
         rgb = decode_srgb_codes(pixels, full_scale)
     else:
@@ -401,7 +405,7 @@ def read_image(
         rgb -= np.float32(black_level)
     np.maximum(rgb, 0.0, out=rgb)
     rgb /= np.float32(level - black_level)
-    return LinearImage(rgb=rgb, clipped=clipped, path=str(path), bit_depth=bit_depth, transparent=transparent)
+    return LinearImage(rgb, clipped, str(path), bit_depth, transparent=transparent, camera_to_xyz=camera_to_xyz)
 
 
 MASK_SUFFIXES = (".png", ".tif", ".tiff")

@@ -1,4 +1,9 @@
-"""Writing linear images (16-bit PNG or TIFF) and labelled image sets."""
+"""Writing linear images (16-bit PNG or TIFF), sRGB ones tagged as such, and labelled image sets.
+
+An sRGB file says so, so that viewers show its colours right and readers (ccjax's own included,
+:func:`ccjax.io.read_image`) do not take its codes for linear data: a PNG gets an ``sRGB`` chunk,
+a TIFF the sRGB ICC profile, a JPEG the profile and EXIF ColorSpace 1. Linear files get no tag.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,8 @@ from numpy.typing import ArrayLike
 
 from ccjax.io.files import write_file
 from ccjax.io.ground_truth import write_ground_truth
+from ccjax.io.icc import srgb_profile
+from ccjax.io.jpeg import save_jpeg
 from ccjax.io.png import write_png
 
 CHUNK_VALUES = 1 << 22
@@ -76,15 +83,26 @@ JPEG_QUALITY = 95
 """Quality of the JPEG files ccjax writes (libjpeg's 0-100 scale): visually lossless for photographs."""
 
 
-def write_codes(path: str | os.PathLike, codes: np.ndarray, *, overwrite: bool = True) -> None:
+def write_codes(
+    path: str | os.PathLike,
+    codes: np.ndarray,
+    *,
+    overwrite: bool = True,
+    srgb: bool = False,
+    exif: bytes | None = None,
+) -> None:
     """Write file codes ``(H, W, 3)`` (``uint8`` or ``uint16``) as a PNG or TIFF, or ``uint8`` as a
-    JPEG (quality :data:`JPEG_QUALITY`), by suffix, atomically (:func:`write_file`; a TIFF is
-    streamed into its temporary file).
+    JPEG (quality :data:`JPEG_QUALITY`, Pillow), by suffix, atomically (:func:`write_file`; a TIFF
+    or JPEG is streamed into its temporary file).
 
     Arguments:
         path: ``.png``, ``.tif``, ``.tiff``, ``.jpg`` or ``.jpeg`` file.
         codes: ``(H, W, 3)`` ``uint8`` or ``uint16`` (JPEG: ``uint8``).
         overwrite: replace a file already at ``path``.
+        srgb: the codes are sRGB-encoded: tag the file so (module docstring). False: linear
+            codes, no colour tag.
+        exif: an EXIF block for a JPEG (:func:`ccjax.io.jpeg.upright_exif`); PNG and TIFF
+            files are written without it.
 
     Returns:
         None.
@@ -99,17 +117,19 @@ def write_codes(path: str | os.PathLike, codes: np.ndarray, *, overwrite: bool =
     if suffix in (".jpg", ".jpeg"):
         if codes.dtype != np.uint8:
             raise ValueError(f"output: {path} is a JPEG, which holds 8 bits per channel; got {codes.dtype} codes")
-        import imagecodecs
-
         write_file(
-            path, bytes(imagecodecs.jpeg8_encode(np.ascontiguousarray(codes), level=JPEG_QUALITY)), overwrite=overwrite
+            path, lambda handle: save_jpeg(handle, codes, JPEG_QUALITY, srgb=srgb, exif=exif), overwrite=overwrite
         )
     elif suffix == ".png":
-        write_png(path, codes, overwrite=overwrite)
+        write_png(path, codes, overwrite=overwrite, srgb=srgb)
     else:
         import tifffile
 
-        write_file(path, lambda handle: tifffile.imwrite(handle, codes, photometric="rgb"), overwrite=overwrite)
+        # tifffile's ``iccprofile`` writes tag 34675 (:data:`ccjax.io.srgb.ICC_PROFILE_TAG`).
+        icc = srgb_profile() if srgb else None
+        write_file(
+            path, lambda handle: tifffile.imwrite(handle, codes, photometric="rgb", iccprofile=icc), overwrite=overwrite
+        )
 
 
 def write_dataset(

@@ -19,6 +19,7 @@ from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.jpeg import upright_exif
 from ccjax.io.outputs import path_key
 from ccjax.io.preview import srgb_preview_rows
+from ccjax.io.raw import camera_to_srgb
 from ccjax.io.reading import MAX_PIXELS, LinearImage
 from ccjax.io.writing import row_slices
 from ccjax.preprocessing import DEFAULT_DARK, Preprocessing
@@ -28,6 +29,27 @@ from ccjax.world import World
 
 OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 """Suffixes of corrected images (16-bit PNG or TIFF); other inputs (raw files) are written as ``.tiff``."""
+
+PREVIEW_SIZE = 1024
+"""Default longest side of a preview, in pixels (a screen's worth: a 12 MP image's preview at full
+size is a 16 MB PNG beside its 2 MB JPEG)."""
+
+
+def preview_path(output: str | os.PathLike) -> Path:
+    """The default preview of an output, named after its full name so that two outputs of one stem
+    (``a.png`` and ``a.jpg``) never share one: ``a.png`` gives ``a_preview.png``, any other suffix
+    is kept in the name (``a.jpg`` gives ``a_jpg_preview.png``, ``a.tif`` ``a_tif_preview.png``).
+
+    Arguments:
+        output: the corrected image's path.
+
+    Returns:
+        The preview's path, beside the output.
+    """
+    output = Path(output)
+    suffix = output.suffix.lower()
+    tag = "" if suffix == ".png" else f"_{output.suffix.lstrip('.')}"
+    return output.with_name(f"{output.stem}{tag}_preview.png")
 
 
 def _source(images: Images | ImageFolder, masks, read_options: dict | None, max_pixels: int | None) -> ImageFolder:
@@ -102,16 +124,20 @@ def estimate_folder(
     return run_models(source, {label: [model]}, preprocessing=preprocessing, dark=dark, progress=progress)
 
 
-def folder_outputs(paths: Sequence[str | os.PathLike], target: str | os.PathLike) -> tuple[list[Path], list[Path]]:
+def folder_outputs(
+    paths: Sequence[str | os.PathLike], target: str | os.PathLike, *, suffix: str | None = None
+) -> tuple[list[Path], list[Path]]:
     """Output and preview paths in folder ``target`` for each input, no two alike (case-insensitively).
 
-    ``a.png`` gives ``a.png`` and ``a_preview.png``; a later input whose names are taken (``a.tif``,
-    ``A.PNG`` beside it) gets its original suffix in the stem: ``a_tif.tif``, ``a_tif_preview.png``,
-    then a number (``A_PNG-2.png``).
+    ``a.png`` gives ``a.png`` and ``a_preview.png`` (:func:`preview_path`); a later input whose
+    names are taken (``a.tif``, ``A.PNG`` beside it) gets its original suffix in the stem:
+    ``a_tif.tif``, ``a_tif_tif_preview.png``, then a number (``A_PNG-2.png``).
 
     Arguments:
         paths: the input files.
         target: the output folder.
+        suffix: every output's suffix (``".jpg"`` for JPEG outputs); None: the input's own when it
+            is one of :data:`OUTPUT_SUFFIXES`, else ``.tiff``.
 
     Returns:
         ``(outputs, previews)``, lists of paths.
@@ -120,11 +146,13 @@ def folder_outputs(paths: Sequence[str | os.PathLike], target: str | os.PathLike
     used: set[str] = set()
     outputs, previews = [], []
     for path in map(Path, paths):
-        suffix = path.suffix.lower() if path.suffix.lower() in OUTPUT_SUFFIXES else ".tiff"
+        own = path.suffix.lower() if path.suffix.lower() in OUTPUT_SUFFIXES else ".tiff"
+        ending = own if suffix is None else suffix
         tags = ["", f"_{path.suffix.lstrip('.')}"]
         tags += [f"_{path.suffix.lstrip('.')}-{number}" for number in range(2, len(paths) + 3)]
         for tag in tags:
-            output, preview = target / f"{path.stem}{tag}{suffix}", target / f"{path.stem}{tag}_preview.png"
+            output = target / f"{path.stem}{tag}{ending}"
+            preview = preview_path(output)
             if path_key(output) not in used and path_key(preview) not in used:
                 break
         used.update((path_key(output), path_key(preview)))
@@ -138,7 +166,8 @@ def correct_folder(
     method: str | AbstractEstimator,
     outputs: str | os.PathLike | Sequence[str | os.PathLike],
     *,
-    previews: Sequence[str | os.PathLike] | None = None,
+    previews: Sequence[str | os.PathLike] | bool | None = None,
+    preview_size: int | None = PREVIEW_SIZE,
     world: World | None = None,
     sharpening: np.ndarray | None = None,
     preprocessing: str | Preprocessing | None = None,
@@ -146,7 +175,7 @@ def correct_folder(
     read_options: dict | None = None,
     masks: str | os.PathLike | Sequence[str | os.PathLike | None] | None = None,
     progress: bool = False,
-    each: Callable[[int, Estimate, Path, Path], None] | None = None,
+    each: Callable[[int, Estimate, Path, Path | None], None] | None = None,
     max_pixels: int | None = MAX_PIXELS,
     overwrite: bool = True,
     srgb: int | None = None,
@@ -166,18 +195,25 @@ def correct_folder(
         method: a registry label (fitted to ``world`` through the store) or a fitted estimator.
         outputs: an output folder (names from :func:`folder_outputs`), or one output file
             (``.png``, ``.tif``, ``.tiff``) per image.
-        previews: one preview file (``.png``) per image (default: the output's stem + ``_preview.png``).
+        previews: one preview file (``.png``) per image; None or True: :func:`preview_path` of each
+            output; False: no previews.
+        preview_size: a preview's longest side at most, in pixels (block means in linear light,
+            :func:`ccjax.io.srgb_preview_rows`); None: full size.
         world: the world (default :func:`ccjax.runs.store.world`): labels are fitted to it, its
-            canonical light is the target and its camera gives the preview colours.
+            canonical light is the target and its camera gives the sRGB colours of files that
+            carry no colour matrix of their own. A raw file is estimated at half size and
+            corrected at full size (:func:`ccjax.io.read_image`'s ``raw_full_size``).
         sharpening: optional invertible ``(3, 3)`` sharpening transform (:func:`ccjax.correction.correct`).
         preprocessing, dark, read_options, masks, progress, max_pixels: as :func:`estimate_folder`.
         each: called after each image is written with ``(index in the source, estimate, output,
-            preview)``.
+            preview)`` (preview None without previews).
         overwrite: replace files already at the outputs' names.
         srgb: 8 or 16: write the output as sRGB with that many bits instead of linear camera RGB,
-            at full resolution and without the preview's exposure change (the world's
-            camera-to-sRGB matrix, :func:`ccjax.io.preview_matrix`, then the sRGB transfer
-            curve: the canonical white at full scale is sRGB white).
+            at full resolution and without the preview's exposure change (the raw file's own
+            colour matrix when it carries one, :func:`ccjax.io.raw.camera_to_srgb`, else the world
+            camera's, :func:`ccjax.io.preview_matrix`; then the sRGB transfer curve: the canonical
+            white at full scale is sRGB white); into a folder, ``srgb=8``
+            writes JPEGs under the inputs' stems.
 
     Returns:
         The :class:`~ccjax.runs.images.ImageRun`.
@@ -191,15 +227,18 @@ def correct_folder(
     source = _source(images, masks, read_options, max_pixels)
     world = world if world is not None else store.world()
     label, model = fitted(method, world)
-    if isinstance(outputs, (str, os.PathLike)):
-        written, shown = folder_outputs(source.paths, outputs)
-    else:
-        written = [Path(output) for output in outputs]
-        shown = [output.with_name(f"{output.stem}_preview.png") for output in written]
-    if previews is not None:
-        shown = [Path(preview) for preview in previews]
     if srgb not in (None, 8, 16):
         raise ValueError(f"srgb: expected 8 or 16 bits (or None for linear output), got {srgb!r}")
+    if isinstance(outputs, (str, os.PathLike)):
+        # 8-bit sRGB is what JPEG holds: a folder corrected for viewing becomes a folder of JPEGs.
+        written, _ = folder_outputs(source.paths, outputs, suffix=".jpg" if srgb == 8 else None)
+    else:
+        written = [Path(output) for output in outputs]
+    shown: list[Path | None] = [preview_path(output) for output in written]
+    if previews is False:
+        shown = [None] * len(written)
+    elif previews is not None and previews is not True:
+        shown = [Path(preview) for preview in previews]
     if len(written) != len(source) or len(shown) != len(source):
         raise ValueError(
             f"outputs, previews: expected one each per image ({len(source)}), got {len(written)} and {len(shown)}"
@@ -209,6 +248,12 @@ def correct_folder(
 
     def write(index: int, image: LinearImage, estimates: dict[str, Estimate]) -> None:
         estimate = estimates[label]
+        if Path(image.path).suffix.lower() in io.RAW_SUFFIXES:
+            # Estimated on the half-size read (unmixed pixels, §2.7); corrected at the sensor's full
+            # size, demosaiced, on the same unit scale (LibRaw's black and white levels).
+            image = io.read_image(image.path, **source.read_options, raw_full_size=True)
+        # A raw file's own colour matrix gives its sRGB colours; other files the world camera's.
+        colours = matrix if image.camera_to_xyz is None else camera_to_srgb(image.camera_to_xyz, canonical)
 
         # The pixels estimation left out as clipped come out white (one clip rule: the reader's level,
         # 0.98 of saturation by default or the saturation given); transparent ones are mapped as read.
@@ -226,18 +271,20 @@ def correct_folder(
         codes = np.empty(image.rgb.shape, np.uint16 if srgb != 8 else np.uint8)
         for rows in row_slices(image.rgb.shape):
             piece = corrected(rows)
-            codes[rows] = io.quantise(piece) if srgb is None else io.encode_srgb(piece @ matrix.T, srgb)
+            codes[rows] = io.quantise(piece) if srgb is None else io.encode_srgb(piece @ colours.T, srgb)
         # A JPEG output keeps its input's EXIF (camera, times), upright as its pixels are.
         exif = upright_exif(image.path) if written[index].suffix.lower() in (".jpg", ".jpeg") else None
         io.write_codes(written[index], codes, overwrite=overwrite, srgb=srgb is not None, exif=exif)
         del codes
-        try:
-            preview = srgb_preview_rows(corrected, image.rgb.shape, matrix)
-            io.write_png(shown[index], preview, overwrite=overwrite, srgb=True)
-        except BaseException:
-            # An output without its preview (a full disk) would make a rerun refuse the output.
-            written[index].unlink(missing_ok=True)
-            raise
+        preview_file = shown[index]
+        if preview_file is not None:
+            try:
+                preview = srgb_preview_rows(corrected, image.rgb.shape, colours, size=preview_size)
+                io.write_png(preview_file, preview, overwrite=overwrite, srgb=True)
+            except BaseException:
+                # An output without its preview (a full disk) would make a rerun refuse the output.
+                written[index].unlink(missing_ok=True)
+                raise
         if each is not None:
             each(index, estimate, written[index], shown[index])
 

@@ -59,12 +59,13 @@ class ImageRun:
     preparation: dict[str, float] = field(default_factory=dict)
 
     def records(self) -> list[dict]:
-        """One record per estimated image and model, models first (path, method, illuminant, rg, ok, status).
+        """One record per estimated image and model, models first (path, method, illuminant with its
+        largest channel 1 as in every output of ccjax, rg, ok, status).
 
         Returns:
             A list of dicts.
         """
-        from ccjax._colour import rg_numpy
+        from ccjax._colour import rg_numpy, unit_light
         from ccjax.estimators.base import Status
 
         rows = []
@@ -75,7 +76,7 @@ class ImageRun:
                     {
                         "path": self.paths[index],
                         "method": label,
-                        "illuminant": [float(v) for v in rgb],
+                        "illuminant": unit_light([float(v) for v in rgb]),
                         "rg": [float(v) for v in rg_numpy(np.asarray(rgb, np.float64))],
                         "ok": bool(self.ok[label][index]),
                         "status": Status(int(self.status[label][index])).name.lower(),

@@ -151,13 +151,14 @@ def planckian_lights(world: World, locus: float) -> World:
 
 
 def render_images(
-    pretraining: Pretraining, world: World | None = None
+    pretraining: Pretraining, world: World | None = None, *, progress: bool = False
 ) -> tuple[Float[Array, "N H W 3"], Bool[Array, "N H W"], Float[Array, "N 3"]]:
     """The rendered photographs (module docstring), as the reader returns photographs.
 
     Arguments:
         pretraining: what to render.
         world: the world to render from (default: the camera's default world, :func:`ccjax.runs.store.world`).
+        progress: a progress bar over the images rendered.
 
     Returns:
         ``(rgb (N, H, W, 3), clipped (N, H, W), lights (N, 3))``: linear RGB on the unit scale
@@ -171,13 +172,18 @@ def render_images(
         raise ValueError(f"patches: the world has {world.reflectances.shape[0]} reflectances, got {p.patches}")
     tables = SceneTables.from_world(world)
     key_scenes, key_exposure = jax.random.split(jax.random.PRNGKey(p.seed))
+    from tqdm.auto import tqdm
+
     images, lights = [], []
+    bar = tqdm(total=p.images, desc="render", unit="image", disable=not progress, leave=False)
     for start in range(0, p.images, CHUNK):
         keys = scene_keys(key_scenes, start, min(CHUNK, p.images - start))
         # Image i is a function of fold_in(key, i) alone: the set does not depend on CHUNK.
         scenes = mondrian_batch(keys, tables, p.height, p.width, p.patches, specular=p.specular, noise=p.noise)
         images.append(scenes.image)
         lights.append(scenes.illuminant)
+        bar.update(len(keys))
+    bar.close()
     image = jnp.concatenate(images)
     gain = 2.0 ** jax.random.uniform(key_exposure, (p.images, 1, 1, 1), minval=p.exposure[0], maxval=p.exposure[1])
     # The sensor saturates at 1, then the converter keeps whole codes of the 16-bit file.
@@ -186,7 +192,12 @@ def render_images(
 
 
 def render_examples(
-    pretraining: Pretraining, rule: Preprocessing, input_kind: str, *, dark: float = DEFAULT_DARK
+    pretraining: Pretraining,
+    rule: Preprocessing,
+    input_kind: str,
+    *,
+    dark: float = DEFAULT_DARK,
+    progress: bool = False,
 ) -> Examples:
     """Rendered training examples prepared by ``rule`` (as :func:`ccjax.training.source_examples`
     prepares photographs), cached on disk by everything they depend on.
@@ -196,6 +207,7 @@ def render_examples(
         rule: the resolved input rule of the estimator (:func:`ccjax.preprocessing.resolve`).
         input_kind: the estimator's input kind (``"surfaces"`` or ``"image"``).
         dark: the surface lists' dark rule.
+        progress: progress bars over the images rendered and prepared (not when cached).
 
     Returns:
         The :class:`Examples` (names ``synthetic-<i>``).
@@ -210,8 +222,11 @@ def render_examples(
     }
     stored = read_arrays("pretraining", key, layout, facts)
     if stored is None or stored["mask"].shape != stored["x"].shape[:-1]:
-        rgb, clipped, lights = (np.asarray(a) for a in render_images(pretraining))
-        inputs = [prepare_input(rule, LinearImage(rgb[i], clipped[i]), dark=dark) for i in range(len(rgb))]
+        from tqdm.auto import tqdm
+
+        rgb, clipped, lights = (np.asarray(a) for a in render_images(pretraining, progress=progress))
+        prepared = tqdm(range(len(rgb)), desc="prepare", unit="image", disable=not progress, leave=False)
+        inputs = [prepare_input(rule, LinearImage(rgb[i], clipped[i]), dark=dark) for i in prepared]
         x, mask = stack_inputs([a for a, _ in inputs], [m for _, m in inputs], input_kind)
         stored = {"x": x, "mask": mask, "illuminant": lights.astype(np.float32)}
         write_arrays("pretraining", key, stored, facts)
@@ -241,7 +256,7 @@ def pretrain(
     Returns:
         ``(pretrained model, its TrainingLog)``.
     """
-    examples = render_examples(pretraining, rule, start.input_kind)
+    examples = render_examples(pretraining, rule, start.input_kind, progress=progress)
     return train_model(start, examples, schedule, progress=progress)
 
 

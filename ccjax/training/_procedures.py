@@ -40,7 +40,9 @@ def _fit_ffcc(
         raise ValueError(f"examples: FFCC trains on images (N, H, W, 3), got shape {tuple(examples.x.shape)}")
     prior, settings = (model, Hyperparameters()) if fine_tune else (None, None)
     if settings is None:
-        settings, _ = choose(model, examples.x, examples.mask, examples.illuminant, seed=schedule.seed)
+        settings, _ = choose(
+            model, examples.x, examples.mask, examples.illuminant, seed=schedule.seed, progress=progress
+        )
     trained, record = train_ffcc(model, examples.x, examples.mask, examples.illuminant, settings, prior=prior)
     log = TrainingLog(train_loss=record.losses, n_train=len(examples), n_heldout=0)
     log.seconds, log.cpu_seconds = time.perf_counter() - start, time.process_time() - cpu_start

@@ -96,6 +96,7 @@ def choose(
     illuminants: Float[Array | np.ndarray, "N 3"],
     candidates: tuple[Hyperparameters, ...] = CANDIDATES,
     seed: int = 0,
+    progress: bool = False,
 ) -> tuple[Hyperparameters, list[float]]:
     """The candidate with the lowest two-fold error within the given (training) images.
 
@@ -104,6 +105,7 @@ def choose(
         images, masks, illuminants: the training images, as :func:`ccjax.estimators.ffcc.train`.
         candidates: the settings to choose from.
         seed: seed of the subset and of its split into two halves.
+        progress: a progress bar over the candidates (each is two L-BFGS fits).
 
     Returns:
         ``(the chosen settings, each candidate's score)``; the score is the mean of the mean and
@@ -123,8 +125,10 @@ def choose(
     images, masks, illuminants = (np.asarray(a)[used] for a in (images, masks, illuminants))
     count = len(used)
     half = rng.permutation(count) < count // 2
+    from tqdm.auto import tqdm
+
     scores = []
-    for settings in candidates:
+    for settings in tqdm(candidates, desc="FFCC settings", unit="candidate", disable=not progress, leave=False):
         errors = []
         for fit_on in (half, ~half):
             trained, _ = train(model, images[fit_on], masks[fit_on], illuminants[fit_on], settings)
