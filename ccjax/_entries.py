@@ -30,7 +30,7 @@ import numpy as np
 from ccjax import limits
 from ccjax._cache import atomic_write, cache_directory, parse_record
 
-SCHEMA = 1
+SCHEMA = 2
 """Version of the entry layout; an entry of another schema is rejected (and replaced)."""
 
 _RECORD = ("schema", "kind", "key", "digest", "skeleton")
@@ -62,19 +62,25 @@ class Expect:
     high: float = math.inf
 
 
-def digest(skeleton: Any, arrays: Mapping[str, np.ndarray]) -> str:
-    """The content digest of an entry.
+def digest(kind: str, key: str, skeleton: Any, arrays: Mapping[str, np.ndarray]) -> str:
+    """The content digest of an entry, bound to its kind and key: an entry moved to another key's
+    name, or relabelled in its record, no longer verifies (another method's fit is never read as
+    this one's). The digest is not keyed with a secret: whoever can write the cache folder can
+    write a consistent entry (the trust model: the cache folder is as trusted as the code).
 
     Arguments:
+        kind: what the entry holds.
+        key: its cache key.
         skeleton: JSON-able description (a model's skeleton, a world's names, the key's facts).
         arrays: the arrays by name.
 
     Returns:
-        sha256 hex digest of ``json.dumps(skeleton, sort_keys=True, separators=(",", ":"))`` followed,
-        for each array name in sorted order, by ``"\\n<name> <dtype.str> <shape>\\n"`` and its
-        C-order bytes.
+        sha256 hex digest of ``"<kind>\\n<key>\\n"``, then ``json.dumps(skeleton, sort_keys=True,
+        separators=(",", ":"))``, then for each array name in sorted order
+        ``"\\n<name> <dtype.str> <shape>\\n"`` and its C-order bytes.
     """
-    hasher = hashlib.sha256(json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode())
+    hasher = hashlib.sha256(f"{kind}\n{key}\n".encode())
+    hasher.update(json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode())
     for name in sorted(arrays):
         array = np.ascontiguousarray(arrays[name])
         hasher.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
@@ -107,7 +113,7 @@ def write_entry(
         "schema": SCHEMA,
         "kind": kind,
         "key": key,
-        "digest": digest(skeleton, arrays),
+        "digest": digest(kind, key, skeleton, arrays),
         "skeleton": skeleton,
     }
     atomic_write(path, json.dumps(record, default=str).encode())
@@ -146,8 +152,13 @@ def read_entry(
         raise Rejected("the record is not JSON") from None
     except ValueError as error:  # not UTF-8, or nested past the limit
         raise Rejected(f"the record: {error}") from None
-    if isinstance(record, dict) and "schema" not in record and record.get("format") == 1:
-        return None  # an entry of the layout before schema 1 (ccjax 0.2): not damaged, replaced
+    earlier = isinstance(record, dict) and (
+        record.get("schema") == 1 or ("schema" not in record and record.get("format") == 1)
+    )
+    if earlier:
+        # An entry of an earlier layout (ccjax 0.2's; schema 1, whose digest did not cover the key):
+        # not damaged, replaced without a warning.
+        return None
     if not isinstance(record, dict) or set(_RECORD) - set(record):
         raise Rejected("the record lacks schema, kind, key, digest or skeleton")
     if record["schema"] != SCHEMA:
@@ -165,7 +176,7 @@ def read_entry(
         raise
     except Exception as error:  # any failure to read the arrays rejects the entry
         raise Rejected(f"unreadable arrays: {type(error).__name__}: {error}") from None
-    if digest(record["skeleton"], arrays) != record["digest"]:
+    if digest(kind, key, record["skeleton"], arrays) != record["digest"]:
         raise Rejected("the content digest does not match")
     for name, want in (expect or {}).items():
         _check_values(name, arrays[name], want)
@@ -243,8 +254,15 @@ def reject(path: Path, why: Exception, action: str, *, stacklevel: int = 4) -> N
     )
 
 
-def _normal(facts: Mapping[str, Any]) -> Any:
-    """The facts as the record holds them (a JSON round trip)."""
+def normal_facts(facts: Mapping[str, Any]) -> Any:
+    """The facts as the record holds them (a JSON round trip).
+
+    Arguments:
+        facts: JSON-able facts.
+
+    Returns:
+        Their JSON round trip (what :func:`read_arrays` compares with).
+    """
     return json.loads(json.dumps(dict(facts), sort_keys=True, default=str))
 
 
@@ -268,8 +286,8 @@ def read_arrays(
         entry = read_entry(path, kind, key, expect)
         if entry is None:
             return None
-        if entry[0] != _normal(facts):
-            raise Rejected(f"facts {entry[0]!r}, expected {_normal(facts)!r}")
+        if entry[0] != normal_facts(facts):
+            raise Rejected(f"facts {entry[0]!r}, expected {normal_facts(facts)!r}")
         return entry[1]
     except Rejected as why:
         reject(path, why, "computing it again")
@@ -288,7 +306,7 @@ def write_arrays(kind: str, key: str, arrays: Mapping[str, np.ndarray], facts: M
     """
     path = cache_directory() / kind / f"{key}.json"
     with contextlib.suppress(OSError):
-        write_entry(path, kind, key, _normal(facts), arrays, facts)
+        write_entry(path, kind, key, normal_facts(facts), arrays, facts)
 
 
 def cached_arrays(
@@ -325,6 +343,7 @@ __all__ = [
     "Rejected",
     "cached_arrays",
     "digest",
+    "normal_facts",
     "read_arrays",
     "read_entry",
     "reject",

@@ -28,8 +28,9 @@ from ccjax.training import Pretraining, render_examples
 N_SCENES = 50
 
 
-def _digest(skeleton, arrays) -> str:
-    hasher = hashlib.sha256(json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode())
+def _digest(kind, key, skeleton, arrays) -> str:
+    hasher = hashlib.sha256(f"{kind}\n{key}\n".encode())
+    hasher.update(json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode())
     for name in sorted(arrays):
         array = np.ascontiguousarray(arrays[name])
         hasher.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
@@ -44,7 +45,7 @@ def _forge(record_path, arrays, **changes) -> None:
     buffer = io.BytesIO()
     np.savez(buffer, **arrays)
     record_path.with_suffix(".npz").write_bytes(buffer.getvalue())
-    record["digest"] = _digest(record["skeleton"], arrays)
+    record["digest"] = _digest(record["kind"], record["key"], record["skeleton"], arrays)
     record_path.write_text(json.dumps(record))
 
 

@@ -54,10 +54,10 @@ def fits(monkeypatch):
     return calls
 
 
-def _digest(skeleton, arrays) -> str:
-    # The documented rule, written as one byte string: the skeleton's compact sorted JSON, then
-    # per array (sorted by name) a header line and its C-order bytes.
-    parts = [json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode()]
+def _digest(kind, key, skeleton, arrays) -> str:
+    # The documented rule, written as one byte string: the kind and key lines, the skeleton's compact
+    # sorted JSON, then per array (sorted by name) a header line and its C-order bytes.
+    parts = [f"{kind}\n{key}\n".encode(), json.dumps(skeleton, sort_keys=True, separators=(",", ":")).encode()]
     parts += [
         f"\n{name} {np.asarray(arrays[name]).dtype.str} {np.shape(arrays[name])}\n".encode()
         + np.asarray(arrays[name]).tobytes(order="C")
@@ -87,8 +87,8 @@ def _rewrite(cache, skeleton=None, arrays=None, kind="fits", **record_changes) -
         buffer = io.BytesIO()
         np.savez(buffer, **arrays)  # pyright: ignore[reportArgumentType]
         npz_path.write_bytes(buffer.getvalue())
-    record["digest"] = _digest(record["skeleton"], _arrays(npz_path))
     record.update(record_changes)
+    record["digest"] = _digest(record["kind"], record["key"], record["skeleton"], _arrays(npz_path))
     record_path.write_text(json.dumps(record))
 
 
@@ -286,6 +286,25 @@ def test_damaged_entries_are_refitted_with_one_warning(cache, fits, small_test_w
     _same_leaves(again, model)
     store.clear_memory()
     assert store.fit_with_source("ECRULE-MV", small_test_world)[1] is True  # replaced
+
+
+def test_an_entry_moved_under_another_key_is_refitted(cache, fits, small_test_world):
+    """Another method's fit copied under this method's key, its record relabelled with this key
+    (the digest left as written): the digest covers the kind and the key, so it is rejected and
+    refitted, never read as this method's model."""
+    store.fit("GW", small_test_world)
+    (gw_record,) = (cache / "fits").glob("*.json")
+    store.fit("DB-GW", small_test_world)
+    (db_record,) = [path for path in (cache / "fits").glob("*.json") if path != gw_record]
+    record = json.loads(db_record.read_text())
+    record["key"] = json.loads(gw_record.read_text())["key"]
+    gw_record.write_text(json.dumps(record))
+    gw_record.with_suffix(".npz").write_bytes(db_record.with_suffix(".npz").read_bytes())
+    store.clear_memory()
+    with pytest.warns(store.CacheEntryRejected, match="digest"):
+        model, hit = store.fit_with_source("GW", small_test_world)
+    assert not hit and fits == ["GW", "DB-GW", "GW"]
+    _same_leaves(model, registry.fit("GW", small_test_world))
 
 
 def test_model_classes_are_an_allow_list():

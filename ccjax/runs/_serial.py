@@ -4,8 +4,8 @@ read path of the cache).
 A model's skeleton names
 its classes as ``"module:qualname"``; they are looked up in an allow-list (a dict given by the
 caller), never imported, and are rebuilt field by field without running their ``__init__``. The
-digest is the sha256 of the skeleton's canonical JSON and of every array's name, dtype, shape and
-bytes (:func:`digest`); an entry that does not verify raises :class:`Rejected`.
+digest is the sha256 of the entry's kind and key, the skeleton's canonical JSON and every array's
+name, dtype, shape and bytes (:func:`digest`); an entry that does not verify raises :class:`Rejected`.
 """
 
 from __future__ import annotations

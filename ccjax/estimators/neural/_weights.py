@@ -1,5 +1,7 @@
-"""Trained NEURAL-NET weights in the ccjax cache: ``<cache>/neural/<label>-<key>.eqx`` with a JSON
-record beside it (:mod:`ccjax._cache`), keyed by the world arrays training reads and the recipe.
+"""Trained NEURAL-NET weights in the ccjax cache: a verified entry (:mod:`ccjax._entries`) of kind
+``neural`` under ``<label>-<key>``, keyed by the world arrays training reads and the recipe, read
+back only when its digest (bound to the key), its arrays' names, shapes and finite values all
+check (a truncated or edited entry is removed with one warning, then reported missing).
 Building a net estimator never trains: missing weights raise :class:`MissingWeightsError` with the
 command that trains them."""
 
@@ -9,12 +11,19 @@ import dataclasses
 import math
 from pathlib import Path
 
+import equinox as eqx
 import jax
+import jax.numpy as jnp
+import numpy as np
 
-from ccjax._cache import cache_directory, content_key, load_model, save_model
+from ccjax._cache import cache_directory, content_key
+from ccjax._entries import Expect, normal_facts, read_arrays, write_entry
 from ccjax.estimators.neural._model import Mlp
 from ccjax.estimators.neural._training import RECIPES, Recipe, Schedule, TrainingLog, train
 from ccjax.world import World
+
+KIND = "neural"
+"""The cache's sub-folder and entry kind of the nets' weights."""
 
 
 class MissingWeightsError(FileNotFoundError):
@@ -48,7 +57,20 @@ def weights_path(world: World, label: str, recipe: Recipe | None = None) -> Path
         The path (which may not exist yet).
     """
     recipe = recipe or _recipe(label)
-    return cache_directory() / "neural" / f"{label}-{cache_key(world, recipe)}.eqx"
+    return cache_directory() / KIND / f"{_entry_key(world, label, recipe)}.json"
+
+
+def _entry_key(world: World, label: str, recipe: Recipe) -> str:
+    return f"{label}-{cache_key(world, recipe)}"
+
+
+def _facts(world: World, label: str, recipe: Recipe) -> dict:
+    """What the entry must say it holds (checked when read)."""
+    return {"label": label, "world": world.name, "recipe": dataclasses.asdict(recipe)}
+
+
+def _leaves(net: Mlp) -> list:
+    return jax.tree_util.tree_leaves(eqx.filter(net, eqx.is_array))
 
 
 def has_weights(world: World, label: str) -> bool:
@@ -77,28 +99,33 @@ def is_net_label(label: str) -> bool:
 
 
 def save(net: Mlp, world: World, label: str, recipe: Recipe, schedule: Schedule, log: TrainingLog) -> Path:
-    """Write the weights and a JSON record beside them (:func:`ccjax._cache.save_model`, atomic).
+    """Write the weights as a verified cache entry (:func:`ccjax._entries.write_entry`, atomic).
 
     Arguments:
         net: the trained net.
         world: the world it was trained for.
         label: the net's label.
         recipe: the training recipe.
-        schedule: the optimisation schedule.
-        log: the training log (recorded in the JSON).
+        schedule: the optimisation schedule (not stored).
+        log: the training log (its seconds and final RMS rg error go in the entry's record, for people).
 
     Returns:
-        The weights' path.
+        The entry's record path.
     """
+    arrays = {f"leaf{index:03d}": np.asarray(leaf) for index, leaf in enumerate(_leaves(net))}
+    path, key, facts = (
+        weights_path(world, label, recipe),
+        _entry_key(world, label, recipe),
+        _facts(world, label, recipe),
+    )
+    # Not write_arrays, which ignores an unwritable cache: minutes of training must not vanish unsaid.
     record = {
-        "label": label,
-        "world": world.name,
-        "recipe": dataclasses.asdict(recipe),
-        "schedule": dataclasses.asdict(schedule),
+        **facts,
         "training_seconds": log.seconds,
         "final_rms_rg": math.sqrt(log.losses[-1]) if log.losses else None,
     }
-    return save_model(weights_path(world, label, recipe), net, record)
+    write_entry(path, KIND, key, normal_facts(facts), arrays, record)
+    return path
 
 
 def load(world: World, label: str, recipe: Recipe | None = None) -> Mlp:
@@ -114,12 +141,18 @@ def load(world: World, label: str, recipe: Recipe | None = None) -> Mlp:
     """
     recipe = recipe or _recipe(label)
     path = weights_path(world, label, recipe)
-    if not path.is_file():
+    like = Mlp(jax.random.key(0), recipe.sizes())
+    leaves = _leaves(like)
+    expect = {f"leaf{index:03d}": Expect(tuple(leaf.shape), "f") for index, leaf in enumerate(leaves)}
+    arrays = read_arrays(KIND, _entry_key(world, label, recipe), expect, _facts(world, label, recipe))
+    if arrays is None:
         raise MissingWeightsError(
             f"{label}: no trained weights for world {world.name!r} (looked for {path}); "
             f"train them with `{train_command(world, label)}` (a few minutes on a CPU)"
         )
-    return load_model(path, Mlp(jax.random.key(0), recipe.sizes()))
+    params, static = eqx.partition(like, eqx.is_array)
+    trained = [jnp.asarray(arrays[f"leaf{index:03d}"], leaf.dtype) for index, leaf in enumerate(leaves)]
+    return eqx.combine(jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(params), trained), static)
 
 
 def train_command(world: World, label: str) -> str:
