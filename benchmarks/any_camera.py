@@ -26,7 +26,7 @@ import numpy as np
 from ccjax import evaluation
 from ccjax.estimators.base import estimate_batch
 from ccjax.evaluation.any_camera import train_any_camera
-from ccjax.evaluation.folders import read_folder
+from ccjax.evaluation.scored_folder import read_folder
 
 
 def per_image_ms(model, images, masks, repeats: int = 5) -> float:

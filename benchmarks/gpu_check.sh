@@ -11,7 +11,7 @@
 #
 # Usage: benchmarks/gpu_check.sh OUTDIR
 #   Run in the repository root with ccjax importable (an installed ccjax, or on the GPU machine
-#   after `source .devenv`). Logs go to OUTDIR. Environment:
+#   after activating the virtual environment (`. .venv/bin/activate`)). Logs go to OUTDIR. Environment:
 #     PYTHON=python3          the interpreter
 #     GPU_CHECK_QUICK=1       small sizes (a few minutes on a CPU): checks the script, not the targets
 #     GPU_CHECK_BUDGET=300    seconds for the whole run; the test suite gets what is left

@@ -42,7 +42,7 @@ import numpy as np
 from ccjax import materials, scenes, thesis
 from ccjax.estimators import gamut
 from ccjax.estimators.neural import MissingWeightsError
-from ccjax.experiments import protocols
+from ccjax.experiments import table_protocols as protocols
 from ccjax.runs import store
 from ccjax.world import World
 

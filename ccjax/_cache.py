@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ccjax import limits
+from ccjax._signals import interrupts_held
 from ccjax._version import __version__
 
 FORMAT_VERSION = 1
@@ -228,15 +229,22 @@ def atomic_write_files(files: Mapping[Path, bytes | Callable[[BinaryIO], object]
     if not replace and len(paths) > 1:  # (one file: put_in_place refuses it without a race)
         for path in paths:
             if os.path.lexists(path):
-                raise FileExistsError(errno.EEXIST, "exists (use --overwrite to replace it)", str(path))
+                raise FileExistsError(
+                    errno.EEXIST,
+                    "appeared while ccjax was working and is kept (use --overwrite to replace it)",
+                    str(path),
+                )
     temporaries: list[str] = []
     placed: list[Path] = []
     try:
         for path, blob in zip(paths, files.values(), strict=True):
             temporaries.append(_write_temporary(path, blob))
-        for path, temporary in zip(paths, temporaries, strict=True):
-            put_in_place(temporary, path, overwrite=replace)
-            placed.append(path)
+        # Ctrl-C (and SIGTERM, where the command asked) wait until every file is in place: a pair
+        # is never left half old, half new by a signal.
+        with interrupts_held():
+            for path, temporary in zip(paths, temporaries, strict=True):
+                put_in_place(temporary, path, overwrite=replace)
+                placed.append(path)
     except BaseException:
         if len(paths) > 1 and not replace:
             for path in placed:  # new files of this call only: replaced ones cannot come back
@@ -295,13 +303,19 @@ def save_model(path: Path, model: eqx.Module, metadata: Mapping[str, Any], *, re
     path = Path(path)
     buffer = io.BytesIO()
     eqx.tree_serialise_leaves(buffer, model)
-    record = {"format": FORMAT_VERSION, "ccjax": __version__, **metadata}
+    # The record names the exact model bytes it describes: a record beside another run's model
+    # (two writers, or files copied apart) is refused when read, never loaded as a pair.
+    weights = {WEIGHTS_DIGEST: hashlib.sha256(buffer.getvalue()).hexdigest()}
+    record = {"format": FORMAT_VERSION, "ccjax": __version__, **metadata, **weights}
     text = json.dumps(record, indent=1, default=str).encode()
     # One pair: both written whole before either appears; the model last (readers open the
     # record first, and a model without its record cannot be loaded).
     atomic_write_files({path.with_suffix(".json"): text, path: buffer.getvalue()}, replace=replace)
     return path
 
+
+WEIGHTS_DIGEST = "weights_sha256"
+"""The model record's field holding the sha256 of the model file it belongs to."""
 
 MAX_RECORD_BYTES = int(limits.RECORD_BYTES.value)
 """Largest model record read (a written one is a few kilobytes): :data:`ccjax.limits.RECORD_BYTES`."""
@@ -335,9 +349,24 @@ def load_model(path: Path, like: ModelT) -> ModelT:
     Returns:
         ``like`` with the stored leaves.
     """
-    read_model_metadata(path)
+    record = read_model_metadata(path)
+    # A file far larger than the skeleton's leaves is not this model: refused before it is read.
+    expected = sum(leaf.nbytes for leaf in jax.tree_util.tree_leaves(eqx.filter(like, eqx.is_array)))
     try:
-        model = eqx.tree_deserialise_leaves(path, like)
+        if Path(path).stat().st_size > 2 * expected + (1 << 20):
+            kind = type(like).__name__
+            raise ValueError(f"model: {path} is far larger than a {kind}'s parameters ({expected} bytes)")
+        blob = Path(path).read_bytes()
+    except OSError as error:
+        raise ValueError(f"model: cannot read {path}: {error}") from None
+    # Records written before the digest existed have none: those pairs are read as they are.
+    if WEIGHTS_DIGEST in record and record[WEIGHTS_DIGEST] != hashlib.sha256(blob).hexdigest():
+        raise ValueError(
+            f"model: {path} is not the model its record {Path(path).with_suffix('.json')} describes (another run's "
+            "file, or an edited one); write the pair again (ccjax train ... --out)"
+        )
+    try:
+        model = eqx.tree_deserialise_leaves(io.BytesIO(blob), like)
     except (OSError, ValueError, RuntimeError) as error:
         raise ValueError(
             f"model: {path} does not fit a {type(like).__name__} ({error}); a model written before this "

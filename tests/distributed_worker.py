@@ -168,7 +168,7 @@ def image_part(world, models, folder, out) -> None:
     """(b) Angular errors of GW and RETINEX on the folder's images (each process reads its share)."""
     import numpy as np
 
-    from ccjax.experiments.evaluation import run_images
+    from ccjax.evaluation import run_images
     from ccjax.io import match_ground_truth, read_ground_truth
 
     pairs = match_ground_truth(read_ground_truth(Path(folder) / "groundtruth.csv"), folder)
@@ -180,7 +180,7 @@ def image_part(world, models, folder, out) -> None:
         out[f"images/{label}"] = result.angular(label)
     out["images/index"] = np.arange(len(pairs))
     # `ccjax evaluate --folds 3`'s library call: fold worlds from the other folds' ground truth.
-    from ccjax.experiments.folders import evaluate_folder
+    from ccjax.evaluation import evaluate_folder
 
     evaluation = evaluate_folder(folder, Path(folder) / "groundtruth.csv", list(models), world=world, folds=3)
     for label in models:

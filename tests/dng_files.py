@@ -83,3 +83,32 @@ def write_dng(
     if analog_balance is not None:
         tags.append((50727, RATIONAL, 3, _pairs(np.round(np.asarray(analog_balance) * 10000), 10000), True))
     tifffile.imwrite(path, cfa, photometric=32803, extratags=tags, metadata=None)
+
+
+GREY_CARD = (24, 36, 16, 24)
+"""The rectangle ``X,Y,W,H`` inside :func:`photo_dng`'s grey card, in the upright half-size image
+that estimation reads (the card covers columns 20-43 and rows 32-63 there)."""
+
+
+def photo_dng(path, seed: int = 0) -> None:
+    """A small raw photograph: a 128 x 192 RGGB sensor (Orientation 6: upright, 192 rows by 128
+    columns at full size, 96 by 64 at half size) of flat coloured patches and a grey card
+    (reflectance 0.45, sensor rows 40-87, columns 64-127) under a warm light whose camera RGB is
+    (0.9, 1.0, 0.55), with the Canon EOS 5D Mark II's make, model and colour matrix.
+
+    Arguments:
+        path: the ``.dng`` file.
+        seed: the patches' colours.
+
+    Returns:
+        None.
+    """
+    rng = np.random.default_rng(seed)
+    reflectance = rng.uniform(0.05, 0.8, (8, 12, 3)).repeat(16, 0).repeat(16, 1)
+    reflectance[40:88, 64:128] = 0.45
+    codes = np.round(BLACK + reflectance * np.array([0.9, 1.0, 0.55]) * 0.9 * (WHITE - BLACK)).astype(np.uint16)
+    cfa = np.empty(codes.shape[:2], np.uint16)
+    cfa[0::2, 0::2], cfa[0::2, 1::2] = codes[0::2, 0::2, 0], codes[0::2, 1::2, 1]
+    cfa[1::2, 0::2], cfa[1::2, 1::2] = codes[1::2, 0::2, 1], codes[1::2, 1::2, 2]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_dng(path, cfa)

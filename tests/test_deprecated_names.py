@@ -3,6 +3,8 @@ the same numbers as that replacement (and as an independent NumPy oracle)."""
 
 from __future__ import annotations
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -48,3 +50,56 @@ def test_estimators_fit_warns_and_matches_fit_uncached(small_test_world):
 def test_the_cached_fit_keeps_its_name():
     assert "fit" in ccjax.__all__
     assert "fit" not in estimators.__all__ and "fit_uncached" in estimators.__all__
+
+
+# Deprecated module paths: photo evaluation has one home, ccjax.evaluation, and the modules named
+# folders / protocols / results were renamed for what they hold. (old module, name, replacement).
+MOVED = [
+    ("ccjax.experiments.folders", "evaluate_folder", "ccjax.evaluation.evaluate_folder"),
+    ("ccjax.experiments.folders", "protocol_for", "ccjax.evaluation.protocol_for"),
+    ("ccjax.experiments.folders", "FolderEvaluation", "ccjax.evaluation.FolderEvaluation"),
+    ("ccjax.experiments.folders", "check_fold_options", "ccjax.evaluation.photo_protocols.check_fold_options"),
+    ("ccjax.experiments.folders", "CSV_FIELDS", "ccjax.evaluation.scored_folder.CSV_FIELDS"),
+    ("ccjax.experiments.folder_sets", "evaluate_folder_sets", "ccjax.evaluation.evaluate_folder_sets"),
+    ("ccjax.experiments.folder_sets", "FolderSet", "ccjax.evaluation.FolderSet"),
+    ("ccjax.experiments.folder_sets", "geometric_means", "ccjax.evaluation.geometric_means"),
+    ("ccjax.experiments.folder_sets", "fold_model_file", "ccjax.evaluation.sets.fold_model_file"),
+    ("ccjax.experiments.evaluation", "ImageResults", "ccjax.evaluation.ImageResults"),
+    ("ccjax.experiments.evaluation", "run_images", "ccjax.evaluation.run_images"),
+    ("ccjax.experiments.evaluation", "fold_worlds", "ccjax.evaluation.fold_worlds"),
+    ("ccjax.evaluation.folders", "read_folder", "ccjax.evaluation.scored_folder.read_folder"),
+    ("ccjax.evaluation.protocols", "KFolds", "ccjax.evaluation.photo_protocols.KFolds"),
+    ("ccjax.evaluation.results", "ImageResults", "ccjax.evaluation.image_results.ImageResults"),
+    ("ccjax.experiments.protocols", "reproduce", "ccjax.experiments.table_protocols.reproduce"),
+    ("ccjax.experiments.results", "SweepResult", "ccjax.experiments.sweep_results.SweepResult"),
+]
+
+
+def _fresh_import(name: str):
+    """Import ``name`` anew, so that its import-time warning is raised again."""
+    import importlib
+    import sys
+
+    sys.modules.pop(name, None)
+    return importlib.import_module(name)
+
+
+@pytest.mark.parametrize(("old", "name", "new"), MOVED, ids=lambda value: str(value).rsplit(".", 1)[-1])
+def test_a_moved_name_warns_naming_its_replacement_and_is_the_same_object(old, name, new):
+    import importlib
+
+    module_name, _, attribute = new.rpartition(".")
+    replacement = getattr(importlib.import_module(module_name), attribute)
+    with pytest.warns(DeprecationWarning, match=rf"^{re.escape(old)} is deprecated: use "):
+        module = _fresh_import(old)
+    with pytest.warns(DeprecationWarning, match=rf"^{re.escape(old)}\.{name} is deprecated: use {re.escape(new)}$"):
+        assert getattr(module, name) is replacement
+    assert name in dir(module)
+
+
+@pytest.mark.parametrize("old", sorted({old for old, _, _ in MOVED}))
+def test_a_deprecated_module_refuses_a_name_it_never_had(old):
+    with pytest.warns(DeprecationWarning):
+        module = _fresh_import(old)
+    with pytest.raises(AttributeError, match=rf"{re.escape(old)}.*'no_such_name'"):
+        module.no_such_name  # noqa: B018 (the attribute access is the test)

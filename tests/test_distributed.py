@@ -146,7 +146,7 @@ def check_sweep(runs):
 def check_images(runs):
     """(b) Each process decodes only its share of the folder's images (every process probes every
     header); the pooled angular errors are the single-process ``run_images`` ones, in file order,
-    and so are ``evaluate --folds 3``'s (:func:`ccjax.experiments.folders.evaluate_folder`)."""
+    and so are ``evaluate --folds 3``'s (:func:`ccjax.evaluation.evaluate_folder`)."""
     reference, files = runs["reference0"]
     images = sorted(name for name in files["decoded"] if name.endswith(".png"))
     assert images == [f"im{i}.png" for i in range(7)]

@@ -18,7 +18,7 @@ from jax.sharding import Mesh
 from ccjax import experiments, scenes
 from ccjax.estimators import registry
 from ccjax.estimators.base import AbstractSurfaceEstimator, Estimate, Padding
-from ccjax.experiments import protocols
+from ccjax.experiments import table_protocols as protocols
 from ccjax.runs import engine, store, synthetic
 from ccjax.runs.synthetic import SyntheticSource, padded_sizes, run_synthetic
 from ccjax.scenes import SceneOptions

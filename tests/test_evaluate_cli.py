@@ -10,8 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from ccjax import cli, io
-from ccjax.experiments import evaluation
+from ccjax import cli, evaluation, io
 from ccjax.runs import images as run_images
 from ccjax.runs import sources as run_sources
 from ccjax.runs import store
@@ -129,7 +128,7 @@ def test_mask_folder(setup, capsys):
 def test_images_without_a_ground_truth_row_are_named_and_refused_unless_allowed(setup, capsys):
     """Four images, two ground-truth rows: ``evaluate`` names both unlisted files and exits 2;
     ``--allow-missing`` scores the two listed ones and still names the others (also in the JSON)."""
-    from ccjax.experiments.folders import evaluate_folder
+    from ccjax.evaluation import evaluate_folder
 
     gt = _dataset(setup / "set", count=4)
     truth = io.read_ground_truth(gt)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ccjax import cli, io, scenes
-from ccjax.experiments.folder_sets import geometric_mean
+from ccjax.evaluation import geometric_mean
 
 N = 9
 FOLDERS = ("alpha", "beta", "gamma")

@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 import ccjax.training._folds as fold_module
-from ccjax import cli, io, scenes, training
-from ccjax.experiments import evaluation
+from ccjax import cli, evaluation, io, scenes, training
 
 LABEL = "C-by-C-MMSE"
 TRAINED = f"{LABEL} trained"

@@ -245,7 +245,7 @@ def test_experiments_import_is_cheap():
     script = (
         "import sys, ccjax.experiments, ccjax.cli\n"
         "heavy = [m for m in sys.modules if m.startswith(('ccjax.experiments.chapter5', 'ccjax.experiments.indexing',"
-        " 'ccjax.experiments.evaluation', 'matplotlib'))]\n"
+        " 'matplotlib'))]\n"
         "print(heavy)\n"
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)

@@ -225,7 +225,7 @@ def test_chapter8_columns_reuse_the_chapter4_scenes(default_world):
 
 
 def test_claims_print_ok_or_miss():
-    from ccjax.experiments.protocols import check_claim
+    from ccjax.experiments.table_protocols import check_claim
 
     ours = {("A", "c"): 0.04, ("B", "c"): 0.05, ("ECRULE-MV", "c"): 0.045, ("X-ECRULE-ICA", "c"): 0.03}
     assert check_claim(("less", "A", "B", "c"), ours).endswith(": ok")

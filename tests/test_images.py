@@ -13,8 +13,7 @@ import pytest
 from image_files import bad_files
 from small_world import small_world
 
-from ccjax import cli, io, preprocessing, scenes
-from ccjax.experiments import evaluation
+from ccjax import cli, evaluation, io, preprocessing, scenes
 from ccjax.io import LinearImage
 from ccjax.metrics import angular_error
 from ccjax.runs import store
@@ -148,7 +147,7 @@ def test_cli_folder_runs_go_on_past_bad_files(tmp_path, world, cache, monkeypatc
                 "--methods",
                 "GW",
                 "--json",
-                str(out),
+                f"{out}.json",
             ],
         }[command]
         assert cli.main(argv + ["--no-progress"]) == 2
@@ -160,7 +159,7 @@ def test_cli_folder_runs_go_on_past_bad_files(tmp_path, world, cache, monkeypatc
         elif command == "correct":
             assert sorted(p.name for p in out.iterdir()) == ["a.png", "a_preview.png"]
         else:
-            report = json.loads(out.read_text())
+            report = json.loads(Path(f"{out}.json").read_text())
             assert {Path(r["path"]).name for r in report["images"]} == {"a.png"}
             assert len(report["failures"]) == 1 and bad.name in report["failures"][0]
             assert "over 1 images" in captured.out

@@ -79,3 +79,18 @@ def test_the_docs_list_every_limit_with_its_value():
         row = [line for line in text.splitlines() if line.startswith("|") and line.split("|")[1].strip() == limit.what]
         assert len(row) == 1, limit.what
         assert re.search(rf"\b{re.escape(value)}\b", row[0]), (limit.what, value)
+
+
+def test_rendered_training_images_are_bounded_up_front(capsys):
+    """``--pretrain-images 1e9`` reached 13.2 GB before failing: refused by the parser now, as is
+    ``Pretraining`` past the limit."""
+    from ccjax import cli
+    from ccjax.training import Pretraining
+
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["train", ".", "--method", "FFCC", "--pretrain-camera", "Canon EOS 600D", "--pretrain-images", "1e9"])
+    assert stop.value.code == 2 and "over the limit of 20,000" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["evaluate", ".", "--methods", "GW", "--rendered", "1e9"])
+    with pytest.raises(ValueError, match="over the limit of 20,000"):
+        Pretraining("Canon EOS 600D", images=10**9)

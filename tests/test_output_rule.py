@@ -42,7 +42,7 @@ def _no_work(monkeypatch):
 
     monkeypatch.setattr(ccjax.io, "read_image", fail)
     monkeypatch.setattr(ccjax.io, "probe_image", fail)
-    monkeypatch.setattr("ccjax.experiments.folders.evaluate_folder", fail)
+    monkeypatch.setattr("ccjax.evaluation.evaluate_folder", fail)
     monkeypatch.setattr("ccjax.training.train_on_images", fail)
     monkeypatch.setattr("ccjax.experiments.sweep", fail)
     monkeypatch.setattr("ccjax.calibration.experiment.synthetic_experiment", fail)
@@ -55,9 +55,15 @@ def test_evaluate_refuses_a_report_that_names_an_input(setup, monkeypatch, capsy
     before = _snapshot(setup / "set")
     named = {"gt": gt, "image": setup / "set" / "image-0000.png"}[target]
     _no_work(monkeypatch)
-    argv = ["evaluate", str(setup / "set"), "--ground-truth", str(gt), "--methods", "GW", option, str(named)]
-    assert cli.main([*argv, "--overwrite", "--no-progress"]) == 2
-    _refused(capsys, option, named, "would overwrite the input")
+    argv = ["evaluate", str(setup / "set"), "--ground-truth", str(gt), "--methods", "GW", f"{option}={named}"]
+    if named.suffix != "." + option[2:]:
+        # A report's name ends in .json / .csv: the parser refuses any other before the check.
+        with pytest.raises(SystemExit) as exit:
+            cli.main([*argv, "--overwrite", "--no-progress"])
+        assert exit.value.code == 2 and f"argument {option}:" in capsys.readouterr().err
+    else:
+        assert cli.main([*argv, "--overwrite", "--no-progress"]) == 2
+        _refused(capsys, option, named, "would overwrite the input")
     assert _snapshot(setup / "set") == before
 
 
@@ -112,9 +118,11 @@ def test_calibrate_save_refuses_a_symbolic_link(setup, monkeypatch, capsys):
 
 def test_compare_refuses_one_file_for_json_and_csv(setup, monkeypatch, capsys):
     _no_work(monkeypatch)
-    same = setup / "x"
-    assert cli.main(["compare", "--json", str(same), "--csv", str(same), "--no-progress"]) == 2
-    _refused(capsys, "--csv", "are the same file", "--json")
+    same = setup / "x.json"
+    # One name cannot serve both: --csv's must end in .csv (the parser refuses it first).
+    with pytest.raises(SystemExit) as exit:
+        cli.main(["compare", "--json", str(same), f"--csv={same}", "--no-progress"])
+    assert exit.value.code == 2 and "argument --csv:" in capsys.readouterr().err
     assert not same.exists()
 
 

@@ -254,7 +254,9 @@ def test_output_that_is_a_folder_is_refused(setup, monkeypatch, capsys):
 def test_evaluate_report_paths_are_checked_first(setup, monkeypatch, capsys, option, problem):
     gt = io.write_dataset(setup / "set", np.full((1, 4, 4, 3), 0.5), [[1.0, 1.0, 1.0]])
     (setup / "afile").write_text("x")
-    target = {"folder": setup, "under-a-file": setup / "afile" / "r.json"}
+    name = "r." + option[2:]  # a report's name ends in .json / .csv
+    (setup / name).mkdir()
+    target = {"folder": setup / name, "under-a-file": setup / "afile" / name}
     _no_reads(monkeypatch)
     argv = ["evaluate", str(setup / "set"), "--ground-truth", str(gt), "--methods", "GW", option, str(target[problem])]
     assert cli.main(argv + ["--no-progress"]) == 2
@@ -282,6 +284,7 @@ def test_os_errors_during_work_are_one_line(setup, monkeypatch, capsys):
         raise PermissionError(13, "Permission denied", str(path))
 
     monkeypatch.setattr(writing, "write_file", refused)
+    monkeypatch.setattr(folders, "atomic_write_files", lambda files, **options: refused(next(iter(files)), None))
     assert cli.main(["correct", str(source), str(setup / "o.tif"), "--method", "GW", "--no-progress"]) == 2
     captured = capsys.readouterr()
     errors = [line for line in captured.err.splitlines() if ": notice: " not in line]

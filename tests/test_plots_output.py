@@ -92,7 +92,7 @@ def test_sharpen_refuses_a_plot_it_would_not_write(tmp_path, monkeypatch, capsys
 @pytest.mark.parametrize(
     "argv, needle",
     [
-        (["--json", "{tmp}"], "is a folder"),
+        (["--json", "{tmp}/folder.json"], "is a folder"),
         (["--json", "{tmp}/afile/r.json"], "not a folder"),
         (["--methods", "GW,GWW"], "'GWW'"),
         (["--preprocessing", "ave5-nonsense"], "nonsense"),
@@ -100,6 +100,7 @@ def test_sharpen_refuses_a_plot_it_would_not_write(tmp_path, monkeypatch, capsys
 )
 def test_indexing_checks_everything_first(tmp_path, monkeypatch, capsys, argv, needle):
     (tmp_path / "afile").write_text("x")
+    (tmp_path / "folder.json").mkdir()
     _no_work(monkeypatch)
     assert cli.main(["indexing", "--no-progress", *[a.format(tmp=tmp_path) for a in argv]]) == 2
     _one_line_error(capsys.readouterr(), needle)

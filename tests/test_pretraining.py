@@ -182,13 +182,17 @@ def test_evaluate_train_pretrains_then_fine_tunes_in_every_fold(tmp_path, monkey
         cli.main([*argv[:10], "--pretrain-images", "64", "--no-progress"])
 
 
-def test_train_refuses_pretrain_images_without_a_camera(tmp_path):
+def test_train_refuses_pretrain_images_without_a_camera(tmp_path, capsys):
     from ccjax import cli
 
     with pytest.raises(SystemExit, match="--pretrain-images: applies with --pretrain-camera only"):
         cli.main(["train", str(tmp_path), "--method", "FFCC", "--pretrain-images", "64"])
-    with pytest.raises(SystemExit, match="--pretrain-images: expected a positive integer"):
+    with pytest.raises(SystemExit) as stop:
         cli.main(["train", str(tmp_path), "--method", "FFCC", "--pretrain-camera", CAMERA, "--pretrain-images", "0"])
+    assert (
+        stop.value.code == 2
+        and "argument --pretrain-images: expected an integer in [1, 20000], got 0" in capsys.readouterr().err
+    )
 
 
 @pytest.mark.slow

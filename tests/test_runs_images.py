@@ -14,7 +14,7 @@ from image_files import bad_files
 
 import ccjax.io
 from ccjax import cli, io, runs, training
-from ccjax.experiments.folders import evaluate_folder
+from ccjax.evaluation import evaluate_folder
 from ccjax.runs import sources
 
 

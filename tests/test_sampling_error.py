@@ -5,7 +5,7 @@ import pytest
 import scipy.stats
 
 from ccjax.estimators.base import Status
-from ccjax.experiments.results import SweepResult, sampling_error
+from ccjax.experiments.sweep_results import SweepResult, sampling_error
 
 
 def test_mean_standard_error_is_scipy_sem():

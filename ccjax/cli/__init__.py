@@ -68,11 +68,12 @@ def build_parser() -> argparse.ArgumentParser:
         A new parser (``prog="ccjax"``) whose required sub-command is stored in ``command``; each
         sub-command sets ``func``, the ``run_<command>(args)`` that :func:`main` calls.
     """
-    import argparse
-
     from ccjax._version import __version__
+    from ccjax.cli.common import CommandParser
 
-    parser = argparse.ArgumentParser(
+    # A CommandParser, so its sub-commands' parsers are too: their --json / --csv never take a
+    # positional argument as PATH.
+    parser = CommandParser(
         prog="ccjax",
         description="JAX colour constancy: estimate and correct the colour of the light.",
     )
@@ -96,6 +97,33 @@ def prefix(command: str | None) -> str:
     return f"ccjax {command}" if command else "ccjax"
 
 
+def terminated(error: BaseException) -> bool:
+    """Whether ``error`` is SIGTERM's :class:`ccjax._signals.Terminated` or was caused by it.
+
+    Arguments:
+        error: the exception that stopped the command.
+
+    Returns:
+        True when ``error`` or an exception in its cause/context chain is ``Terminated``.
+    """
+    from ccjax._signals import Terminated
+
+    return _in_chain(error, Terminated)
+
+
+def _in_chain(error: BaseException, kind: type[BaseException]) -> bool:
+    """Whether ``error`` or an exception in its cause/context chain (followed once each, so a
+    cyclic chain ends) is a ``kind``."""
+    seen: set[int] = set()
+    current: BaseException | None = error
+    while current is not None and id(current) not in seen:
+        if isinstance(current, kind):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
 def interrupted(error: BaseException) -> bool:
     """Whether ``error`` is Ctrl-C or was caused by it: a ``KeyboardInterrupt`` raised while an
     extension module initialises (numpy, jaxlib) reaches the caller as an ``ImportError`` whose
@@ -108,14 +136,7 @@ def interrupted(error: BaseException) -> bool:
         True when ``error`` or any exception in its cause/context chain (followed once each, so a
         cyclic chain ends) is a ``KeyboardInterrupt``.
     """
-    seen: set[int] = set()
-    current: BaseException | None = error
-    while current is not None and id(current) not in seen:
-        if isinstance(current, KeyboardInterrupt):
-            return True
-        seen.add(id(current))
-        current = current.__cause__ or current.__context__
-    return False
+    return _in_chain(error, KeyboardInterrupt)
 
 
 def redeliver_interrupts(unraisable) -> None:
@@ -249,7 +270,7 @@ def unexpected_error_line(command: str | None, error: Exception) -> str:
     )
 
 
-def _stop_on_interrupt(command: str | None, whole_process: bool) -> int:
+def _stop_on_interrupt(command: str | None, whole_process: bool, terminated: bool = False) -> int:
     """The end of a command stopped by Ctrl-C: late interrupts ignored first (when this is the
     process's own command line, on the main thread), then one line, then 130 — or an immediate
     exit when a worker thread would hold the interpreter's exit.
@@ -258,9 +279,10 @@ def _stop_on_interrupt(command: str | None, whole_process: bool) -> int:
         command: the command's name, for the line (``None`` before the arguments were read).
         whole_process: ``main`` runs the process (``argv`` not given), so the process may ignore
             SIGINT from now on and exit at once.
+        terminated: the stop came from SIGTERM (:class:`ccjax._signals.Terminated`).
 
     Returns:
-        130 (128 + SIGINT).
+        130 (128 + SIGINT), or 143 (128 + SIGTERM) when ``terminated``.
     """
     process = whole_process and threading.current_thread() is threading.main_thread()
     if process:
@@ -268,20 +290,22 @@ def _stop_on_interrupt(command: str | None, whole_process: bool) -> int:
         # Ctrl-C) must not turn the exit into death by SIGINT. Ignored before anything else, so
         # that one landing here is the last (main retries this function once it has).
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
     for timer in _REDELIVERIES:
         timer.cancel()
-    print(f"{prefix(command)}: interrupted", file=sys.stderr)
+    code = 143 if terminated else 130
+    print(f"{prefix(command)}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
     if process:
-        workers = [thread for thread in threading.enumerate() if thread is not threading.main_thread()]
-        if any(thread.is_alive() and not thread.daemon for thread in workers):
-            # A worker thread still busy (a sweep compiling programs ahead) would hold the
-            # interpreter's exit until it finished, up to the length of a compilation: stop now,
-            # as Ctrl-C should (every file ccjax writes is written atomically).
-            for stream in (sys.stdout, sys.stderr):
-                with contextlib.suppress(OSError, ValueError):
-                    stream.flush()
-            os._exit(130)
-    return 130
+        # Stop now, without the interpreter's shutdown: a worker thread still busy (a sweep
+        # compiling programs ahead) would hold the exit until it finished, and XLA's own compile
+        # threads, invisible to Python, crashed the shutdown (a segmentation fault in 9 of 13
+        # `train` runs stopped while compiling). Every file ccjax writes is written atomically and
+        # the temporaries are gone by now (their clean-up ran as the interrupt unwound).
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()
+        os._exit(code)
+    return code
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -300,6 +324,12 @@ def main(argv: list[str] | None = None) -> int:
         The exit code.
     """
     command = None
+    if argv is None and threading.current_thread() is threading.main_thread():
+        # SIGTERM stops the command as Ctrl-C does, through the same clean-up (no temporaries
+        # left, no output pair half replaced), with one line and 143.
+        from ccjax._signals import terminate_cleanly
+
+        terminate_cleanly()
     previous_hook, sys.unraisablehook = sys.unraisablehook, redeliver_interrupts
     previous_format = warnings.formatwarning
     try:
@@ -312,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
         if interrupted(error):
             while True:
                 try:
-                    return _stop_on_interrupt(command, whole_process=argv is None)
+                    return _stop_on_interrupt(command, whole_process=argv is None, terminated=terminated(error))
                 except KeyboardInterrupt:
                     # A late copy of this Ctrl-C (a redelivery in flight) landed before late ones
                     # were ignored: it is the same interrupt, so stop once, not die by SIGINT.
@@ -334,6 +364,11 @@ def main(argv: list[str] | None = None) -> int:
         warnings.formatwarning = previous_format
         for timer in _REDELIVERIES:
             timer.cancel()
+        if argv is None and threading.current_thread() is threading.main_thread():
+            # The command is over: a signal now (during the interpreter's exit) must not turn its
+            # exit code into death by the signal.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 __all__ = [
@@ -349,5 +384,6 @@ __all__ = [
     "one_line_warnings",
     "prefix",
     "redeliver_interrupts",
+    "terminated",
     "unexpected_error_line",
 ]

@@ -5,8 +5,18 @@ from __future__ import annotations
 import sys
 import time
 
+from ccjax._numbers import decimal, whole
 from ccjax.cli.common import check_outputs as check_files
-from ccjax.cli.common import check_plot, int_list, overwrite_argument, seed, write, write_plot
+from ccjax.cli.common import (
+    check_plot,
+    data_output_argument,
+    int_list,
+    overwrite_argument,
+    seed,
+    table_stream,
+    write,
+    write_plot,
+)
 
 
 def add_calibrate(sub) -> None:
@@ -46,7 +56,7 @@ def add_calibrate(sub) -> None:
     )
     p.add_argument(
         "--smoothness",
-        type=float,
+        type=decimal,
         default=None,
         help="lambda of the smoothness term (default: the library default, or --cv)",
     )
@@ -57,21 +67,17 @@ def add_calibrate(sub) -> None:
     )
     p.add_argument(
         "--black",
-        type=float,
+        type=decimal,
         default=None,
         help="camera black b of F, raw units (default: 0 for DATA; the true 10 for --synthetic)",
     )
     p.add_argument(
         "--exp-rate",
-        type=float,
+        type=decimal,
         default=None,
         help="C of F (default: searched per channel)",
     )
-    p.add_argument(
-        "--json",
-        action="store_true",
-        help="print the RMS relative error of each method as a fraction, as JSON",
-    )
+    data_output_argument(p, "--json", "the RMS relative error of each method as a fraction")
     p.add_argument(
         "--plot",
         default=None,
@@ -86,7 +92,7 @@ def add_calibrate(sub) -> None:
     )
     p.add_argument(
         "--subsets",
-        type=int,
+        type=whole,
         default=100,
         help="random subsets per size for --robustness (default: %(default)s)",
     )
@@ -96,7 +102,7 @@ def add_calibrate(sub) -> None:
         default=[400, 200, 100, 50, 25, 15],
         help="subset sizes for --robustness (default: 400,200,100,50,25,15)",
     )
-    overwrite_argument(p, "--plot, --save and --robustness files")
+    overwrite_argument(p, "--json, --plot, --save and --robustness files")
     p.set_defaults(func=run_calibrate)
 
 
@@ -120,7 +126,7 @@ def robustness_numbers(path: str) -> str:
 def check_outputs(args) -> None:
     """Refuse unwritable or clashing output files before any work (a bad path found after minutes of
     fitting would lose the run)."""
-    outputs = [("--plot", args.plot), ("--save", args.save), ("--robustness", args.robustness)]
+    outputs = [("--json", args.json), ("--plot", args.plot), ("--save", args.save), ("--robustness", args.robustness)]
     if args.robustness:
         outputs.append(("--robustness", robustness_numbers(args.robustness)))
     check_files([args.file] if args.file else [], outputs, overwrite=args.overwrite)
@@ -150,17 +156,19 @@ def run_calibrate(args) -> int:
     if args.camera and not args.synthetic:
         raise ValueError("--camera applies to --synthetic only")
     check_outputs(args)
+    out = table_stream(args)  # standard error when --json puts the data on standard output
     if args.synthetic:
         camera = args.camera
         if camera is None:  # say which camera was chosen and why, never switch silently
             if has_external_lights(args.data_dir):
                 camera = "Sony DXC-930"
-                print("camera: Sony DXC-930 (the thesis camera; --camera chooses another)")
+                print("camera: Sony DXC-930 (the thesis camera; --camera chooses another)", file=out)
             else:
                 camera = "Canon EOS 5D Mark II"
                 print(
                     "camera: Canon EOS 5D Mark II (the thesis' Sony DXC-930 curves are external data and were "
-                    "not found: --data-dir or $CCJAX_DATA; --camera chooses another)"
+                    "not found: --data-dir or $CCJAX_DATA; --camera chooses another)",
+                    file=out,
                 )
         report = experiment.synthetic_experiment(
             camera,
@@ -173,7 +181,7 @@ def run_calibrate(args) -> int:
         table, truth = report.table, report.data.sensors
         spectra, raw = report.data.usable_data()
         black = report.data.linearisation.black[0]
-        print(table.to_json() if args.json else report.text(), flush=True)
+        print(report.text(), file=out, flush=True)
         title = f"{camera}: fitted (solid) vs true (dashed) sensors"
     else:
         data = read_calibration_csv(args.file)
@@ -192,8 +200,7 @@ def run_calibrate(args) -> int:
                 seed=args.seed,
             )
             smoothness = cross_validation.best
-            if not args.json:
-                print(cross_validation.table())
+            print(cross_validation.table(), file=out)
         table = table_3_1.calibration_table(
             spectra,
             raw,
@@ -202,25 +209,25 @@ def run_calibrate(args) -> int:
             smoothness=DEFAULT_SMOOTHNESS if smoothness is None else smoothness,
         )
         truth = None
-        if args.json:
-            print(table.to_json())
-        else:
-            print(f"{args.file}: {len(spectra)} measurements")
-            print(table.text())
-            rates = joint_exp_rate(table)
-            print()
-            print(
-                table_3_1.held_out(
-                    spectra,
-                    raw,
-                    black=black,
-                    exp_rate=rates,
-                    smoothness=table.smoothness,
-                    seed=args.seed,
-                ).text(),
-                flush=True,
-            )
+        print(f"{args.file}: {len(spectra)} measurements", file=out)
+        print(table.text(), file=out)
+        rates = joint_exp_rate(table)
+        print(file=out)
+        print(
+            table_3_1.held_out(
+                spectra,
+                raw,
+                black=black,
+                exp_rate=rates,
+                smoothness=table.smoothness,
+                seed=args.seed,
+            ).text(),
+            file=out,
+            flush=True,
+        )
         title = f"{args.file}: fitted sensors"
+    if args.json:
+        write(args.json, table.to_json(), overwrite=args.overwrite)
     if args.plot:
         write_plot(
             args.plot,
@@ -251,8 +258,7 @@ def run_calibrate(args) -> int:
                 flush=True,
             ),
         )
-        if not args.json:
-            print("\n" + result.text())
+        print("\n" + result.text(), file=out)
         title = f"robustness: {args.subsets} random subsets per size"
         write_plot(
             args.robustness,

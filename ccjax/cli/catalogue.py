@@ -7,8 +7,11 @@ from ccjax.cli.common import (
     check_camera_name,
     check_outputs,
     check_plot,
+    data_output_argument,
     overwrite_argument,
+    table_stream,
     world_arguments,
+    write,
     write_plot,
 )
 
@@ -145,13 +148,17 @@ def add_methods(sub) -> None:
         "(surface lists or images), whether its fit can be traced by JAX (jit/grad through the fit), and a "
         "description.",
     )
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    data_output_argument(p, "--json", "the catalogue")
+    overwrite_argument(p, "--json file")
     p.set_defaults(func=run_methods)
 
 
 def run_methods(args) -> int:
+    check_outputs([], [("--json", args.json)], overwrite=args.overwrite)
     catalogue = method_catalogue()
-    print(catalogue.to_json() if args.json else catalogue.text())
+    print(catalogue.text(), file=table_stream(args))  # standard error when --json puts the data on standard output
+    if args.json:
+        write(args.json, catalogue.to_json(), overwrite=args.overwrite)
     return 0
 
 

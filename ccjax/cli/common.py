@@ -9,6 +9,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from ccjax import limits
+from ccjax._numbers import decimal, whole
 
 
 def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -> None:
@@ -45,7 +46,7 @@ def pretrain_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--pretrain-images",
-        type=int,
+        type=count_within(limits.RENDERED_IMAGES),
         default=None,
         help="with --pretrain-camera: rendered images (default: 2000; cached)",
     )
@@ -128,7 +129,7 @@ def build_world(args):
 def int_list(text: str) -> list[int]:
     """``"4,8,16"`` -> ``[4, 8, 16]`` (an argparse type)."""
     try:
-        values = [int(part) for part in text.split(",") if part.strip()]
+        values = [whole(part) for part in text.split(",") if part.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
     if not values:
@@ -159,7 +160,7 @@ def count_within(limit: limits.Limit, low: int = 1) -> Callable[[str], int]:
 
     def parse(text: str) -> int:
         try:
-            value = float(text) if any(c in text.lower() for c in ".e") else int(text)
+            value = decimal(text) if any(c in text.lower() for c in ".e") else whole(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
         if isinstance(value, float) and not value.is_integer():
@@ -186,7 +187,7 @@ def number_within(limit: limits.Limit, low: float = 0.0) -> Callable[[str], floa
 
     def parse(text: str) -> float:
         try:
-            return limits.check_value(float(text), limit, "value", low=low)
+            return limits.check_value(decimal(text), limit, "value", low=low)
         except ValueError as error:
             raise argparse.ArgumentTypeError(str(error).removeprefix("value: ")) from None
 
@@ -322,6 +323,114 @@ def write_plot(path: str | os.PathLike, draw, *, overwrite: bool, drawn_from: tu
     print(f"wrote {path}", file=sys.stderr)
 
 
+DATA_SUFFIXES = {"--json": ".json", "--csv": ".csv"}
+"""The data options of :func:`data_output_argument` and the suffix a file they name must end in."""
+
+
+def data_path(option: str) -> Callable[[str], str]:
+    """The argparse type of ``--json`` / ``--csv``: ``-`` or a path ending in the option's suffix.
+
+    Arguments:
+        option: ``"--json"`` or ``"--csv"``.
+
+    Returns:
+        The type function (it raises ``argparse.ArgumentTypeError`` naming what is wrong).
+    """
+    suffix = DATA_SUFFIXES[option]
+
+    def parse(text: str) -> str:
+        if text == "-" or text.lower().endswith(suffix):
+            return text
+        raise argparse.ArgumentTypeError(
+            f"expected '-' (standard output) or a file name ending in {suffix}, got {text!r}"
+        )
+
+    parse.__name__ = "path"
+    return parse
+
+
+def data_output_argument(parser: argparse.ArgumentParser, option: str, what: str) -> None:
+    """``--json [PATH]`` or ``--csv [PATH]``, with one meaning on every command: no value or ``-``
+    writes the data to standard output, data only (the tables for people go to standard error,
+    :func:`table_stream`); a PATH (which must end in ``.json`` / ``.csv``) writes that file,
+    checked with :func:`check_outputs` (``--overwrite``). A word after the option that is neither
+    is never taken as PATH: it stays a positional argument (``reproduce --json 4.2`` is table 4.2
+    as JSON), which :class:`CommandParser` arranges.
+
+    Arguments:
+        parser: the command's parser (a :class:`CommandParser`; a plain ``ArgumentParser`` gets the
+            option without that look-ahead: there a word after it is its value, checked as PATH).
+        option: ``"--json"`` or ``"--csv"``.
+        what: what the data is, for the help (e.g. ``"the tidy table"``).
+
+    Returns:
+        None.
+
+    Raises:
+        KeyError: ``option`` is neither ``--json`` nor ``--csv``.
+    """
+    suffix = DATA_SUFFIXES[option]
+    parser.add_argument(
+        option,
+        nargs="?",
+        const="-",  # standard output
+        default=None,
+        type=data_path(option),
+        metavar="PATH",
+        help=f"write {what} as {suffix[1:].upper()}: to PATH (ending in {suffix}), or with no PATH or '-' to "
+        "standard output (data only; the tables for people then go to standard error)",
+    )
+    if isinstance(parser, CommandParser):
+        parser.data_options[option] = suffix
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The ``ccjax`` parsers: an ``argparse.ArgumentParser`` whose ``--json`` / ``--csv`` options
+    (:func:`data_output_argument`) take the next word as their PATH only when it is ``-`` or ends
+    in their suffix; any other word stays where it is, a positional argument.
+
+    Attributes:
+        data_options: the data options of this parser and their suffixes.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.data_options: dict[str, str] = {}
+
+    def parse_known_args(self, args=None, namespace=None):  # pyright: ignore[reportIncompatibleMethodOverride]
+        """``argparse.ArgumentParser.parse_known_args``, with each data option followed by a word
+        that is not its PATH given ``-`` explicitly (``--json=-``), so the word stays positional.
+
+        Arguments:
+            args: the arguments (default: the process arguments).
+            namespace: the namespace to fill.
+
+        Returns:
+            ``(namespace, the arguments not recognised)``.
+        """
+        words = list(sys.argv[1:] if args is None else args)
+        kept: dict[str, str] = {}  # word -> the option it followed
+        for index, word in enumerate(words[:-1]):
+            if word == "--":
+                break
+            following = words[index + 1]
+            suffix = self.data_options.get(word)
+            if suffix is None or following.startswith("-"):
+                continue  # '-' (standard output) and a next option are argparse's to read
+            if not following.lower().endswith(suffix):
+                words[index] = f"{word}=-"
+                kept[following] = word
+        namespace, extras = super().parse_known_args(words, namespace)
+        for word in extras:
+            if word in kept:
+                option = kept[word]
+                self.error(
+                    f"{option}: {word!r} is neither '-' nor a file name ending in {self.data_options[option]} "
+                    "(a word after the option is its PATH only then)"
+                )
+        return namespace, extras
+
+
 def table_stream(args):
     """Where a command prints its tables for people: standard output, or standard error when
     ``--json -`` or ``--csv -`` puts the data there, so that standard output holds only the data
@@ -336,11 +445,7 @@ def table_stream(args):
     Raises:
         ValueError: both ``--json -`` and ``--csv -`` (one standard output cannot hold both).
     """
-    import sys
-
-    from ccjax.io.outputs import STANDARD_OUTPUT
-
-    to_stdout = [f"--{name}" for name in ("json", "csv") if getattr(args, name, None) == STANDARD_OUTPUT]
+    to_stdout = [f"--{name}" for name in ("json", "csv") if getattr(args, name, None) == "-"]
     if len(to_stdout) > 1:
         raise ValueError("--json, --csv: give '-' (standard output) to one of them; write the other to a file")
     return sys.stderr if to_stdout else sys.stdout

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ccjax._numbers import decimal, whole
 from ccjax.cli import image_options
 from ccjax.cli.common import check_outputs, overwrite_argument, world_arguments
 
@@ -53,7 +54,7 @@ def add_correct(sub) -> None:
     )
     p.add_argument(
         "--preview-size",
-        type=int,
+        type=whole,
         default=None,
         metavar="PIXELS",
         help="a preview's longest side at most, reduced by block means in linear light (default 1024; 0: full size)",
@@ -66,7 +67,7 @@ def add_correct(sub) -> None:
     )
     p.add_argument(
         "--srgb",
-        type=int,
+        type=whole,
         choices=(8, 16),
         default=None,
         help="write OUTPUT as sRGB with 8 or 16 bits instead of linear camera RGB: full resolution, the "
@@ -147,10 +148,6 @@ SHARPENING_BYTES = 1 << 16
 """Largest ``--sharpening`` file read (a 3x3 matrix is a few hundred bytes as text or .npy)."""
 
 
-NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
-"""A decimal number as people write one (Python's ``float`` also takes ``1_0``, ``nan``, ``inf``)."""
-
-
 def light_values(text: str) -> tuple[float, float, float]:
     """``--light R,G,B``: three non-negative decimal numbers, not all zero.
 
@@ -164,12 +161,14 @@ def light_values(text: str) -> tuple[float, float, float]:
         argparse.ArgumentTypeError: any other text.
     """
     import argparse
-    import re
 
-    parts = [part.strip() for part in text.split(",")]
-    if len(parts) != 3 or not all(re.fullmatch(NUMBER, part) for part in parts):
+    parts = text.split(",")
+    try:
+        values = tuple(decimal(part) for part in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3:
         raise argparse.ArgumentTypeError(f"expected three numbers R,G,B, got {text!r}")
-    values = tuple(float(part) for part in parts)
     if min(values) < 0 or max(values) <= 0:
         raise argparse.ArgumentTypeError(f"expected non-negative numbers, not all zero, got {text!r}")
     return values[0], values[1], values[2]
@@ -188,12 +187,14 @@ def region_values(text: str) -> tuple[int, int, int, int]:
         argparse.ArgumentTypeError: any other text.
     """
     import argparse
-    import re
 
-    parts = [part.strip() for part in text.split(",")]
-    if len(parts) != 4 or not all(re.fullmatch(r"\d+", part) for part in parts):
+    try:
+        values = tuple(whole(part) for part in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 4 or min(values) < 0:
         raise argparse.ArgumentTypeError(f"expected four whole numbers X,Y,W,H, got {text!r}")
-    x, y, width, height = (int(part) for part in parts)
+    x, y, width, height = values
     if width < 1 or height < 1:
         raise argparse.ArgumentTypeError(f"expected a width and height of at least 1 pixel, got {text!r}")
     return x, y, width, height

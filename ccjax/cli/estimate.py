@@ -5,7 +5,14 @@ from __future__ import annotations
 import json
 
 from ccjax.cli import image_options
-from ccjax.cli.common import world_arguments
+from ccjax.cli.common import (
+    check_outputs,
+    data_output_argument,
+    overwrite_argument,
+    table_stream,
+    world_arguments,
+    write,
+)
 
 
 def add_estimate(sub) -> None:
@@ -27,12 +34,13 @@ def add_estimate(sub) -> None:
     image_options.model_arguments(p, "estimate")
     world_arguments(p)
     image_options.image_arguments(p)
-    p.add_argument(
+    data_output_argument(
+        p,
         "--json",
-        action="store_true",
-        help="print a JSON list with one object per image: path, illuminant [R,G,B] (largest channel 1), rg, ok, "
-        "status (estimated, relaxed, fell back, no usable pixels)",
+        "a list with one object per image (path, illuminant [R,G,B] with largest channel 1, rg, ok, status: "
+        "estimated, relaxed, fell back, no usable pixels)",
     )
+    overwrite_argument(p, "--json file")
     p.set_defaults(func=run_estimate)
 
 
@@ -64,6 +72,7 @@ def run_estimate(args) -> int:
     from ccjax.runs.sources import raise_failures
 
     label, model = estimate_model(args)
+    check_outputs(args.images, [("--json", args.json)], overwrite=args.overwrite)
     source = image_options.image_source(args.images, args)
     run = runs.estimate_folder(
         source,
@@ -83,19 +92,20 @@ def run_estimate(args) -> int:
         }
         for r in run.records()
     ]
+    out = table_stream(args)  # standard error when --json puts the data on standard output
+    names = [printable(r["path"]) for r in records]
+    width = max([40, *(len(name) + 2 for name in names)])
+    print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  status", file=out)
+    for name, r in zip(names, records, strict=True):
+        print(
+            f"{name:<{width}}"
+            + "".join(" " + f"{v:.5f}".rjust(9) for v in r["illuminant"])
+            + "".join(" " + f"{v:.4f}".rjust(7) for v in r["rg"])
+            + f"  {r['status']}",
+            file=out,
+        )
     if args.json:
-        print(json.dumps(records, indent=1))
-    else:
-        names = [printable(r["path"]) for r in records]
-        width = max([40, *(len(name) + 2 for name in names)])
-        print(f"{'image':<{width}}{'R':>10}{'G':>10}{'B':>10}{'r':>8}{'g':>8}  status")
-        for name, r in zip(names, records, strict=True):
-            print(
-                f"{name:<{width}}"
-                + "".join(" " + f"{v:.5f}".rjust(9) for v in r["illuminant"])
-                + "".join(" " + f"{v:.4f}".rjust(7) for v in r["rg"])
-                + f"  {r['status']}"
-            )
+        write(args.json, json.dumps(records, indent=1), overwrite=args.overwrite)
     warn_not_estimated(records)
     raise_failures(list(run.failures.values()), len(source))
     return 0

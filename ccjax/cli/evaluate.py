@@ -10,11 +10,15 @@ import pathlib
 import sys
 import time
 
+from ccjax import limits
+from ccjax._numbers import whole
 from ccjax.cli import image_options
 from ccjax.cli.common import (
     check_camera_option,
     check_outputs,
     check_plot,
+    count_within,
+    data_output_argument,
     label_list,
     overwrite_argument,
     pretrain_arguments,
@@ -78,7 +82,7 @@ def add_evaluate(sub) -> None:
     )
     p.add_argument(
         "--folds",
-        type=int,
+        type=whole,
         default=None,
         help="K-fold cross-validation (K >= 2). Alone: each fold's models learn the expected lights from the other "
         "folds' ground truth (the CSV's fold column when it has one, else image i in fold i mod K). "
@@ -113,7 +117,7 @@ def add_evaluate(sub) -> None:
     )
     p.add_argument(
         "--rendered",
-        type=int,
+        type=count_within(limits.RENDERED_IMAGES, low=0),
         default=0,
         metavar="N",
         help="with --leave-one-camera-out: also pool N images rendered through the scored camera's curves "
@@ -134,7 +138,7 @@ def add_evaluate(sub) -> None:
     )
     p.add_argument(
         "--copies",
-        type=int,
+        type=whole,
         default=2,
         metavar="N",
         help="with --leave-one-camera-out --train any-camera: augmented copies of each training image, seen "
@@ -143,7 +147,7 @@ def add_evaluate(sub) -> None:
     )
     p.add_argument(
         "--epochs",
-        type=int,
+        type=whole,
         default=None,
         help="with --train: training epochs at most (default: ccjax.training.Schedule's, with early stopping)",
     )
@@ -158,16 +162,8 @@ def add_evaluate(sub) -> None:
         default=None,
         help="write a figure of the per-image angular errors (their cumulative distribution and each image's)",
     )
-    p.add_argument(
-        "--json",
-        default=None,
-        help="write summaries and per-image results as JSON ('-' for stdout)",
-    )
-    p.add_argument(
-        "--csv",
-        default=None,
-        help="write one row per image and method (estimate, ok, status, angular error) as CSV ('-' for stdout)",
-    )
+    data_output_argument(p, "--json", "the summaries and per-image results")
+    data_output_argument(p, "--csv", "one row per image and method (estimate, ok, status, angular error)")
     overwrite_argument(p, "--json and --csv files")
     world_arguments(p)
     pretrain_arguments(p)

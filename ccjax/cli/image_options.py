@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from ccjax._numbers import decimal, whole
 from ccjax.cli.common import check_camera_name, check_camera_option
 
 if TYPE_CHECKING:
@@ -39,7 +40,7 @@ def image_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--dark",
-        type=float,
+        type=decimal,
         default=None,
         help="surface-list preprocessing: drop pixels with R+G+B below this fraction of the 99th percentile "
         "of the usable pixels' (default: 0.02; pixels inputs have no dark rule)",
@@ -60,13 +61,13 @@ def file_arguments(parser: argparse.ArgumentParser) -> None:
     the options of :func:`read_options`, shared by every command that reads photographs."""
     parser.add_argument(
         "--black-level",
-        type=float,
+        type=level_value,
         default=0.0,
         help="black level in file units (default: 0)",
     )
     parser.add_argument(
         "--saturation",
-        type=float,
+        type=level_value,
         default=None,
         help="saturation level in file units: pixels with a channel at or above it are clipped (default: 0.98 "
         "of the format maximum, e.g. 64224 for 16-bit)",
@@ -86,10 +87,32 @@ def file_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def level_value(text: str) -> float:
+    """A file level (``--black-level``, ``--saturation``): a decimal number at or above 0, in
+    file units (an argparse type).
+
+    Arguments:
+        text: the option's value.
+
+    Returns:
+        The level.
+
+    Raises:
+        argparse.ArgumentTypeError: not a decimal number, or negative.
+    """
+    try:
+        value = decimal(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a level at or above 0 in file units, got {text!r}")
+    return value
+
+
 def positive_int(text: str) -> int:
     """A positive integer (an argparse type)."""
     try:
-        value = int(text)
+        value = whole(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
     if value < 1:
@@ -109,7 +132,22 @@ def max_pixels_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def read_options(args) -> dict:
-    """The keyword arguments of :func:`ccjax.io.read_image` given on the command line."""
+    """The keyword arguments of :func:`ccjax.io.read_image` given on the command line.
+
+    Arguments:
+        args: the parsed arguments (:func:`file_arguments`).
+
+    Returns:
+        The keyword arguments.
+
+    Raises:
+        ValueError: ``--assume-linear`` with ``--decode-srgb`` (8-bit files are read one way or
+            the other, not both).
+    """
+    if args.assume_linear and args.decode_srgb:
+        raise ValueError(
+            "--assume-linear, --decode-srgb: give one (8-bit files read as linear data, or decoded from sRGB)"
+        )
     return {
         "black_level": args.black_level,
         "saturation": args.saturation,

@@ -7,7 +7,17 @@ import sys
 import time
 
 from ccjax import limits
-from ccjax.cli.common import check_outputs, count_within, label_list, overwrite_argument, world_arguments, write
+from ccjax._numbers import whole
+from ccjax.cli.common import (
+    check_outputs,
+    count_within,
+    data_output_argument,
+    label_list,
+    overwrite_argument,
+    table_stream,
+    world_arguments,
+    write,
+)
 from ccjax.cli.image_options import check_labels, image_world
 
 DEFAULT_INDEXING_METHODS = [
@@ -60,19 +70,19 @@ def add_indexing(sub) -> None:
     )
     p.add_argument(
         "--surfaces",
-        type=int,
+        type=whole,
         default=8,
         help="reflectances per object (default: %(default)s)",
     )
     p.add_argument(
         "--lights",
-        type=int,
+        type=whole,
         default=20,
         help="test lights per object (default: %(default)s)",
     )
     p.add_argument(
         "--size",
-        type=int,
+        type=whole,
         default=64,
         help="image side in pixels (default: %(default)s)",
     )
@@ -81,7 +91,7 @@ def add_indexing(sub) -> None:
         default="ave5",
         help="preprocessing for surface-list methods (default: %(default)s)",
     )
-    p.add_argument("--json", default=None, help="write the table as JSON ('-' for stdout)")
+    data_output_argument(p, "--json", "the table and its rank correlations")
     overwrite_argument(p)
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run_indexing)
@@ -116,11 +126,13 @@ def run_indexing(args) -> int:
         preprocessing=args.preprocessing,
         progress=not args.no_progress,
     )
+    out = table_stream(args)  # standard error when --json puts the data on standard output
     print(
         f"world: {world.name}; {args.objects} objects x {args.lights} lights, {args.surfaces} reflectances each, "
-        f"{args.size}x{args.size} px"
+        f"{args.size}x{args.size} px",
+        file=out,
     )
-    print(result.table(), flush=True)
+    print(result.table(), file=out, flush=True)
     if args.json:
         write(
             args.json,

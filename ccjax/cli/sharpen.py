@@ -2,19 +2,24 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import time
 
 from ccjax import limits
+from ccjax._numbers import whole
 from ccjax.cli.common import (
     build_world,
     check_outputs,
     check_plot,
     count_within,
+    data_output_argument,
     number_within,
     overwrite_argument,
+    table_stream,
     world_arguments,
+    write,
     write_plot,
 )
 
@@ -44,7 +49,7 @@ def add_sharpen(sub) -> None:
     )
     p.add_argument(
         "--light",
-        type=int,
+        type=whole,
         default=0,
         help="test-illuminant index for --method database (default: %(default)s)",
     )
@@ -59,8 +64,8 @@ def add_sharpen(sub) -> None:
         default=None,
         help="write a PNG of the original and sharpened sensor curves",
     )
-    overwrite_argument(p, "--plot file")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    overwrite_argument(p, "--plot and --json files")
+    data_output_argument(p, "--json", "the transform and its summary")
     p.add_argument(
         "--rank-cameras",
         action="store_true",
@@ -121,11 +126,13 @@ def run_sharpen(args) -> int:
     from ccjax import sharpening
     from ccjax.experiments import chapter5_report
 
-    check_outputs([], [("--plot", args.plot)], overwrite=args.overwrite)
+    check_outputs([], [("--plot", args.plot), ("--json", args.json)], overwrite=args.overwrite)
     check_plot(args.plot)
     if args.rank_cameras:
         if args.plot:
             raise ValueError("--plot: plots one transform; it does not apply to --rank-cameras")
+        if args.json:
+            raise ValueError("--json: writes one transform; it does not apply to --rank-cameras")
         return run_rank_cameras(args)
     start = time.perf_counter()
     world = build_world(args)
@@ -153,9 +160,8 @@ def run_sharpen(args) -> int:
         transform = sharpening.optimal_sharpening(world, world.test_illuminants[args.light : args.light + 1])[0]
     info["T"] = np.asarray(transform).tolist()
     info.update(chapter5_report.summary(world, transform))
-    if args.json:
-        print(json.dumps(info, indent=1))
-    else:
+    # The text for people goes to standard error when --json puts the data on standard output.
+    with contextlib.redirect_stdout(table_stream(args)):
         print(f"world: {world.name}; camera {world.camera.name}; method {args.method}")
         print("T =")
         for row in np.asarray(transform):
@@ -184,6 +190,8 @@ def run_sharpen(args) -> int:
             f"{info['best_diagonal_sharpened']:8.3f}"
         )
         print(f"  ACTUAL         none / T      {info['actual_unsharpened']:8.3f} / {info['actual_sharpened']:8.3f}")
+    if args.json:
+        write(args.json, json.dumps(info, indent=1), overwrite=args.overwrite)
     if args.plot:
         title = f"{world.camera.name}: {args.method} sharpening"
         write_plot(

@@ -6,11 +6,13 @@ import sys
 import time
 
 from ccjax import limits
+from ccjax._numbers import decimal
 from ccjax.cli.common import (
     build_world,
     check_outputs,
     check_plot,
     count_within,
+    data_output_argument,
     int_list,
     item_mesh_if_distributed,
     label_list,
@@ -19,6 +21,7 @@ from ccjax.cli.common import (
     start_processes,
     table_stream,
     world_arguments,
+    write,
     write_outputs,
     write_plot,
 )
@@ -82,17 +85,13 @@ def add_compare(sub) -> None:
     )
     p.add_argument(
         "--clip",
-        type=float,
+        type=decimal,
         default=None,
         help="discard surfaces with a channel above this level, thesis units (white = 255)",
     )
     p.add_argument("--plot", default=None, help="write a PNG of error versus number of surfaces")
-    p.add_argument(
-        "--json", default=None, help="write the tidy table as JSON ('-': stdout, the tables for people then on stderr)"
-    )
-    p.add_argument(
-        "--csv", default=None, help="write the tidy table as CSV ('-': stdout, the tables for people then on stderr)"
-    )
+    data_output_argument(p, "--json", "the tidy table")
+    data_output_argument(p, "--csv", "the tidy table")
     p.add_argument(
         "--recompute",
         action="store_true",
@@ -257,7 +256,8 @@ def add_reproduce(sub) -> None:
         help="external data directory (else $CCJAX_DATA, else ../shared/data)",
     )
     p.add_argument("--seed", type=seed, default=0)
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    data_output_argument(p, "--json", "the table (ours, the thesis value, differences, sampling errors)")
+    overwrite_argument(p, "--json file")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run_reproduce)
 
@@ -268,6 +268,7 @@ def run_reproduce(args) -> int:
     from ccjax import experiments, thesis
     from ccjax.runs import store
 
+    check_outputs([], [("--json", args.json)], overwrite=args.overwrite)
     world = store.world("barnard1999", seed=args.seed, data_dir=args.data_dir)
     key = jax.random.key(args.seed)
     if args.table == "5.1":
@@ -280,7 +281,9 @@ def run_reproduce(args) -> int:
         if methods is None and args.table in thesis.TABLES:
             methods = experiments.runnable_methods(list(thesis.TABLES[args.table]), world)
         result = experiments.reproduce(args.table, world, methods, args.scenes, key, progress=not args.no_progress)
-    print(result.to_json() if args.json else result.text())
+    print(result.text(), file=table_stream(args))  # standard error when --json puts the data on standard output
+    if args.json:
+        write(args.json, result.to_json(), overwrite=args.overwrite)
     return 0
 
 

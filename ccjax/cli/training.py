@@ -8,10 +8,13 @@ import json
 import os
 import sys
 
+from ccjax import limits
+from ccjax._numbers import decimal, whole
 from ccjax.cli import image_options
 from ccjax.cli.common import (
     build_world,
     check_outputs,
+    count_within,
     overwrite_argument,
     pretrain_arguments,
     pretraining_setting,
@@ -85,7 +88,7 @@ def add_train(sub) -> None:
     )
     p.add_argument(
         "--rendered",
-        type=int,
+        type=count_within(limits.RENDERED_IMAGES, low=0),
         default=0,
         metavar="N",
         help="with --target-camera: also train on N images rendered through its curves (default 0)",
@@ -99,27 +102,27 @@ def add_train(sub) -> None:
     )
     p.add_argument("--ground-truth", default=None, help="CSV image,r,g,b[,fold] (default: DIR/groundtruth.csv)")
     p.add_argument("--method", required=True, help="registry label, e.g. RGB-C-by-C-MMSE")
-    p.add_argument("--folds", type=int, default=None, help="cross-validate with K folds first")
+    p.add_argument("--folds", type=whole, default=None, help="cross-validate with K folds first")
     p.add_argument("--out", default=None, help="model file to write (.eqx, with a .json record beside it)")
     p.add_argument(
-        "--epochs", type=int, default=None, help="Adam: epochs at most (default: 30; log-chroma-mlp: 200; not FFCC)"
+        "--epochs", type=whole, default=None, help="Adam: epochs at most (default: 30; log-chroma-mlp: 200; not FFCC)"
     )
     p.add_argument(
-        "--batch-size", type=int, default=None, help="Adam: images per step (default: 32; nets: 256 scenes; not FFCC)"
+        "--batch-size", type=whole, default=None, help="Adam: images per step (default: 32; nets: 256 scenes; not FFCC)"
     )
     p.add_argument(
         "--learning-rate",
-        type=float,
+        type=decimal,
         default=None,
         help="Adam: step size (default: 0.05; log-chroma-mlp: 0.005; not FFCC)",
     )
     p.add_argument(
         "--patience",
-        type=int,
+        type=whole,
         default=None,
         help="Adam: epochs without improvement before stopping (default: 4; log-chroma-mlp: 20; not FFCC)",
     )
-    p.add_argument("--steps", type=int, default=None, help="nets only: optimiser steps (default: 3000)")
+    p.add_argument("--steps", type=whole, default=None, help="nets only: optimiser steps (default: 3000)")
     p.add_argument("--specular", action="store_true", help="nets only: same as --method SP-NEURAL-NET")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pretrain_arguments(p)
@@ -139,8 +142,8 @@ def add_train_net(sub) -> None:
     )
     world_arguments(p)
     p.add_argument("--specular", action="store_true", help="train SP-NEURAL-NET instead of NEURAL-NET")
-    p.add_argument("--steps", type=int, default=None, help="optimiser steps (default: 3000)")
-    p.add_argument("--batch-size", type=int, default=None, help="training scenes per step (default: 256)")
+    p.add_argument("--steps", type=whole, default=None, help="optimiser steps (default: 3000)")
+    p.add_argument("--batch-size", type=whole, default=None, help="training scenes per step (default: 256)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.set_defaults(func=run_train_net)
 
@@ -191,6 +194,8 @@ def run_train(args) -> int:
         raise SystemExit(
             "train: --world applies to the nets' synthetic training; images train from --camera's default world"
         )
+    if args.steps is not None:
+        raise ValueError("--steps: applies to the nets' synthetic training (no DIR); with a folder, give --epochs")
     pretraining = pretraining_setting(args)
     start_processes()
     from ccjax import training
@@ -432,7 +437,7 @@ def run_train_any_camera(args) -> int:
     from ccjax import evaluation
     from ccjax.cli.common import check_camera
     from ccjax.evaluation.any_camera import train_any_camera
-    from ccjax.evaluation.folders import read_folder
+    from ccjax.evaluation.scored_folder import read_folder
 
     if args.target_camera is not None:
         raise ValueError(

@@ -25,8 +25,8 @@ from ccjax.estimators.base import (
     pairwise_reduce,
     with_fallback,
 )
+from ccjax.estimators.minkowski import check_norm, minkowski_norm, minkowski_parts
 from ccjax.estimators.registry import register
-from ccjax.precision import scale_down
 from ccjax.world import World
 
 
@@ -95,38 +95,30 @@ class ShadesOfGrey(AbstractStatisticsSurfaceEstimator):
 
     The factor 2 is grey world's, so ``p = 1`` is exactly GW; as ``p -> inf`` the chromaticity
     tends to RETINEX's. The magnitude is only meaningful for ``p = 1``.
+
+    Attributes:
+        p: the Minkowski norm ``>= 1`` (an array, as grey edge's: it can be learned, and one
+            compiled program serves every ``p``).
+        fallback: ``(3,)`` estimate for scenes without usable data.
     """
 
-    p: float = eqx.field(static=True)  # static: an integer p compiles to multiplications
+    p: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     fallback: Float[Array, "3"]
     # A statistics method, evaluated on every usable pixel as the field does.
     estimates_brightness: ClassVar[bool] = False
 
+    def __check_init__(self):
+        check_norm(self.p)  # also run on a model read from a file: its p is the file's
+
     def __call__(self, rgb: Float[Array, "P 3"], mask: Bool[Array, " P"]) -> Estimate:
-        count = jnp.sum(mask)
-        masked = jnp.where(mask[:, None], rgb, 0.0)
-        # Normalise each channel by its own maximum first so rho^p neither overflows nor underflows
-        # (the normalised mean is then at least 1/P in every channel with a lit surface, even for
-        # p = 1000; one maximum over all channels let a dim channel's x^p underflow to 0).
-        peak = pairwise_reduce(masked, jnp.maximum)
-        # Relative, not absolute: a scene scaled by 1e-12 is still a scene (any normal float's
-        # reciprocal is finite).
-        smallest = jnp.finfo(peak.dtype).tiny
-        usable = (count > 0) & (jnp.max(peak) > smallest)
-        # Not times the peak's reciprocal: that of a peak above ~8.5e37 is subnormal and flushed
-        # to zero on devices (every estimate came out 0); scale_down divides exactly.
-        scale = jnp.where(peak > smallest, peak, 1.0)
-        # An integer p becomes repeated multiplication (lax.integer_pow), not exp(p log x).
-        exponent = int(self.p) if float(self.p).is_integer() else self.p
-        total = pairwise_reduce(scale_down(masked, scale) ** exponent, jnp.add)
-        mean = total / jnp.maximum(count, 1).astype(total.dtype)
-        positive = mean > 0
-        root = jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / self.p), 0.0)
+        # The surfaces as one column of positions per channel plane: grey edge's Minkowski mean.
+        parts = minkowski_parts(rgb.T[:, :, None], mask[:, None], self.p)
+        maximum, count = parts[0], parts[3]
+        usable = (count > 0) & (jnp.max(maximum) > jnp.finfo(maximum.dtype).tiny)
         # The normalised mean lies in (0, 1], so the estimate is finite wherever ``usable``: no
         # need for with_fallback's finiteness checks, which make XLA re-evaluate the p-th root in
         # each of their fusions (measured 2x slower at 8 surfaces).
-        mantissa, shift = jnp.frexp(jax.lax.stop_gradient(scale))  # x / s * s: s is a constant
-        illuminant = jnp.where(usable, 2.0 * jnp.ldexp(root * mantissa, shift), self.fallback)
+        illuminant = jnp.where(usable, 2.0 * minkowski_norm(parts, self.p), self.fallback)
         return Estimate(illuminant=illuminant, ok=usable)
 
 
@@ -198,7 +190,9 @@ def fit_retinex(world: World, temperature: float | None = None) -> MaxRGB:
 def fit_shades_of_grey(world: World, p: float = 6.0) -> ShadesOfGrey:
     if not p >= 1:
         raise ValueError(f"p: expected a Minkowski norm >= 1, got {p!r}")
-    return ShadesOfGrey(p=float(p), fallback=average_illuminant(world))
+    fallback = average_illuminant(world)
+    # An array, not a Python float: the norm is a (learnable) number, not configuration.
+    return ShadesOfGrey(p=jnp.asarray(p, fallback.dtype), fallback=fallback)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -38,6 +38,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from ccjax import limits
 from ccjax.estimators.base import AbstractImageEstimator, AbstractUnblockedEstimator, Estimate, with_fallback
+from ccjax.estimators.minkowski import check_norm, minkowski_norm, minkowski_parts
 from ccjax.estimators.registry import register
 from ccjax.estimators.simple import average_illuminant
 from ccjax.estimators.tiles import map_row_tiles, tile_rows
@@ -153,50 +154,6 @@ def valid_positions(mask: Bool[Array, "H W"], radius: int) -> Bool[Array, "H W"]
     return mask
 
 
-def _minkowski_parts(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: Float[Array, ""]):
-    """What :func:`minkowski_mean` needs of one tile: the per-channel maxima of the valid values,
-    the scale the powers were taken at (the largest maximum, or 1 when that is not a normal
-    float), the sums of ``(values / scale)^p`` and the count of valid positions."""
-    weights = valid[None]
-    maximum = jnp.max(jnp.where(weights, values, 0.0), axis=(1, 2))
-    finite_p = jnp.where(jnp.isinf(p), 1.0, p)  # the finite branch must stay finite (and its gradient)
-    # Divide by the peak first so values^p neither overflows nor underflows for large p.
-    peak = jax.lax.stop_gradient(jnp.max(maximum))
-    # Scale-free: any normal float is a usable peak (its reciprocal is finite), so an image scaled
-    # by 1e-12 is still estimated.
-    scale = jnp.where(peak > jnp.finfo(peak.dtype).tiny, peak, 1.0)
-    scaled = jnp.where(weights, values / scale, 0.0)
-    positive_scaled = weights & (scaled > 0)
-    powered = jnp.where(positive_scaled, jnp.where(positive_scaled, scaled, 1.0) ** finite_p, 0.0)
-    return maximum, scale, jnp.sum(powered, axis=(1, 2)), jnp.sum(valid, dtype=jnp.int32)
-
-
-def _minkowski_norm(maximum, scale, total, count, p: Float[Array, ""]) -> Float[Array, "3"]:
-    """``(total / count)^(1/p) * scale`` (the maximum for ``p = inf``)."""
-    infinite = jnp.isinf(p)
-    finite_p = jnp.where(infinite, 1.0, p)
-    mean = total / jnp.maximum(count, 1).astype(total.dtype)
-    positive = mean > 0
-    norm = scale * jnp.where(positive, jnp.where(positive, mean, 1.0) ** (1.0 / finite_p), 0.0)
-    return jnp.where(infinite, maximum, norm)
-
-
-def minkowski_mean(values: Float[Array, "3 H W"], valid: Bool[Array, "H W"], p: Float[Array, ""]) -> Float[Array, "3"]:
-    """``(mean over valid of values^p)^(1/p)`` per channel plane (non-negative values; ``p = inf``:
-    the maximum). ``p`` is an array, so it can be traced and learned.
-
-    Arguments:
-        values: ``(3, H, W)`` non-negative responses.
-        valid: ``(H, W)`` positions that count.
-        p: the Minkowski norm, ``>= 1`` or ``inf``.
-
-    Returns:
-        ``(3,)`` the norms.
-    """
-    p = jnp.asarray(p, values.dtype)
-    return _minkowski_norm(*_minkowski_parts(values, valid, p), p)
-
-
 def _filter_radius(order: int, sigma: float) -> int:
     """Half-width of the derivative filters (rows a tile needs above and below its own)."""
     return max(derivative_kernel(sigma, n).size // 2 for n in range(order + 1))
@@ -237,18 +194,18 @@ def edge_norms(
         valid = valid_positions(usable, radius)[margin : margin + own.size] & own[:, None]
         own_pixels = usable[margin : margin + own.size] & own[:, None]
         brightest = jnp.max(jnp.abs(jnp.where(own_pixels[..., None], tile[margin : margin + own.size], 0.0)))
-        return *_minkowski_parts(response, valid, p), brightest
+        return *minkowski_parts(response, valid, p), brightest
 
     if rows is None:
         maximum, scale, total, count, brightest = parts(image, mask, jnp.ones(image.shape[0], bool), margin=0)
-        return _minkowski_norm(maximum, scale, total, count, p), count > 0, brightest
+        return minkowski_norm((maximum, scale, total, count), p), count > 0, brightest
     maxima, scales, totals, counts, brightest = map_row_tiles(parts, image, mask, rows=rows, halo=halo)
-    scale = jnp.max(scales)
+    scale = jnp.max(scales, axis=0)
     finite_p = jnp.where(jnp.isinf(p), 1.0, p)
-    # Each tile's sums were taken at its own scale: bring them to the largest (ratios <= 1).
-    rescaled = jnp.where(totals > 0, totals * ((scales / scale) ** finite_p)[:, None], 0.0)
+    # Each tile's sums were taken at its own per-channel scale: bring them to the largest (ratios <= 1).
+    rescaled = jnp.where(totals > 0, totals * (scales / scale) ** finite_p, 0.0)
     count = counts.sum()
-    estimate = _minkowski_norm(jnp.max(maxima, axis=0), scale, rescaled.sum(axis=0), count, p)
+    estimate = minkowski_norm((jnp.max(maxima, axis=0), scale, rescaled.sum(axis=0), count), p)
     return estimate, count > 0, jnp.max(brightest)
 
 
@@ -279,12 +236,7 @@ class GreyEdge(AbstractImageEstimator, AbstractUnblockedEstimator):
 
     def __check_init__(self):
         # Also run on a model read from a file (ccjax._cache.load_model): its p is the file's.
-        try:
-            below = not bool(jnp.asarray(self.p) >= 1)  # NaN too
-        except jax.errors.ConcretizationTypeError:  # traced (a learned p inside jit): not checked here
-            return
-        if below:
-            raise ValueError(f"p: expected a Minkowski norm >= 1 or inf, got {float(self.p)!r}")
+        check_norm(self.p)
         if not (0 <= self.sigma <= limits.SIGMA.value):
             raise ValueError(
                 f"sigma: {self.sigma!r} is outside [0, {limits.SIGMA.value:g}] ({limits.describe(limits.SIGMA)})"

@@ -1,6 +1,6 @@
 """Photo evaluation: methods scored on folders of photographs with ground truth, under a protocol.
 
-A protocol is a value (:mod:`ccjax.evaluation.protocols`), read and training options are values
+A protocol is a value (:mod:`ccjax.evaluation.photo_protocols`), read and training options are values
 (:class:`ReadOptions`, :class:`TrainingOptions`), and :func:`evaluate` runs them over
 :class:`FolderSet` s::
 
@@ -15,7 +15,9 @@ A protocol is a value (:mod:`ccjax.evaluation.protocols`), read and training opt
   the scored folder's camera (:mod:`ccjax.evaluation.cross_camera`);
 * :class:`ImageResults` -- per-image estimates and the field's statistics; :func:`fold_worlds`;
   :func:`curve_check` -- the ground truth against a camera's Planckian/daylight locus
-  (:func:`locus_whites`).
+  (:func:`locus_whites`);
+* :func:`evaluate_folder`, :func:`evaluate_folder_sets` -- the same in one call with keyword
+  options (the protocol named by ``folds`` and ``train``, :func:`protocol_for`).
 """
 
 from ccjax.evaluation.camera_check import (
@@ -35,10 +37,18 @@ from ccjax.evaluation.cross_camera import (
     train_for_camera,
     train_pooled,
 )
-from ccjax.evaluation.folders import FolderData, FolderEvaluation, FolderModels, read_folder
+from ccjax.evaluation.image_results import ImageResults, fold_worlds, run_images
+from ccjax.evaluation.keyword_calls import evaluate_folder, evaluate_folder_sets
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
-from ccjax.evaluation.protocols import AbstractProtocol, FittedToWorld, KFolds, Round, TrainedInFolds
-from ccjax.evaluation.results import ImageResults, fold_worlds, run_images
+from ccjax.evaluation.photo_protocols import (
+    AbstractProtocol,
+    FittedToWorld,
+    KFolds,
+    Round,
+    TrainedInFolds,
+    protocol_for,
+)
+from ccjax.evaluation.scored_folder import FolderData, FolderEvaluation, FolderModels, read_folder
 from ccjax.evaluation.sets import (
     PROTOCOL_STATISTICS,
     FolderSet,
@@ -76,6 +86,8 @@ __all__ = [
     "curve_check",
     "evaluate",
     "evaluate_data",
+    "evaluate_folder",
+    "evaluate_folder_sets",
     "fold_worlds",
     "geometric_mean",
     "geometric_means",
@@ -83,6 +95,7 @@ __all__ = [
     "locus_whites",
     "polyline_distance",
     "pooled_source",
+    "protocol_for",
     "read_folder",
     "run_images",
     "save_fold_models",

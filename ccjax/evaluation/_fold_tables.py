@@ -9,7 +9,7 @@ import typing
 import numpy as np
 
 if typing.TYPE_CHECKING:  # the results module loads on use
-    from ccjax.evaluation.results import ImageResults
+    from ccjax.evaluation.image_results import ImageResults
 
 __all__ = ["fold_table", "training_table"]
 

@@ -14,8 +14,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ccjax.evaluation.folders import FolderData
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
+from ccjax.evaluation.scored_folder import FolderData
 
 __all__ = ["ANY_CAMERA", "kept_out", "train_any_camera"]
 

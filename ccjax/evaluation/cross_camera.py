@@ -19,9 +19,9 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from ccjax.evaluation.any_camera import ANY_CAMERA, kept_out, train_any_camera
-from ccjax.evaluation.folders import TRAINED_SUFFIX, FolderData, FolderModels
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
-from ccjax.evaluation.protocols import AbstractProtocol, Round
+from ccjax.evaluation.photo_protocols import AbstractProtocol, Round
+from ccjax.evaluation.scored_folder import TRAINED_SUFFIX, FolderData, FolderModels
 from ccjax.evaluation.sets import FolderSet
 from ccjax.world import World
 
@@ -260,7 +260,7 @@ def train_on_pool(
             (:func:`adapt_to_images`).
 
     Returns:
-        :class:`~ccjax.evaluation.folders.FolderModels` (no folds; a training note per label).
+        :class:`~ccjax.evaluation.scored_folder.FolderModels` (no folds; a training note per label).
     """
     from ccjax.runs import store
 
@@ -382,7 +382,7 @@ def train_pooled(
         ``(trained model, ccjax.training.TrainingLog, training images)``.
     """
     from ccjax import training as learning
-    from ccjax.evaluation.protocols import trainable_starts
+    from ccjax.evaluation.photo_protocols import trainable_starts
     from ccjax.preprocessing import resolve
 
     start = trainable_starts([label], world)[label]
@@ -447,7 +447,7 @@ def train_for_camera(
     Raises:
         ValueError: no folder, a folder without a camera, or what reading a folder refuses.
     """
-    from ccjax.evaluation.folders import read_folder
+    from ccjax.evaluation.scored_folder import read_folder
     from ccjax.runs import store
 
     read, options = read or ReadOptions(), options or TrainingOptions()

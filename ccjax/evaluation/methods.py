@@ -9,7 +9,7 @@ from __future__ import annotations
 import pathlib
 from collections.abc import Sequence
 
-from ccjax.evaluation.folders import MODEL_SUFFIX
+from ccjax.evaluation.scored_folder import MODEL_SUFFIX
 
 __all__ = ["check_methods", "refuse_unbound"]
 

@@ -1,5 +1,5 @@
 """Photo evaluation over folders of photographs, each taken by one camera: :func:`evaluate` runs a
-protocol's rounds (:mod:`ccjax.evaluation.protocols`: each folder on its own, K-fold, trained in
+protocol's rounds (:mod:`ccjax.evaluation.photo_protocols`: each folder on its own, K-fold, trained in
 folds, or trained on the other cameras' folders), each scored folder with its own camera's world,
 then the geometric mean of each statistic over the folders, as the field reports NUS-8 (Cheng,
 Prasad & Brown 2014; e.g. Barron & Tsai 2017, Table 1), with each method's training seconds and
@@ -17,7 +17,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ccjax.evaluation.folders import (
+from ccjax.evaluation.methods import check_methods
+from ccjax.evaluation.options import ReadOptions, TrainingOptions
+from ccjax.evaluation.photo_protocols import AbstractProtocol
+from ccjax.evaluation.scored_folder import (
     TRAINED_SUFFIX,
     FolderData,
     FolderEvaluation,
@@ -26,9 +29,6 @@ from ccjax.evaluation.folders import (
     read_folder,
     score_folder,
 )
-from ccjax.evaluation.methods import check_methods
-from ccjax.evaluation.options import ReadOptions, TrainingOptions
-from ccjax.evaluation.protocols import AbstractProtocol
 from ccjax.world import World
 
 __all__ = [
@@ -338,7 +338,7 @@ def evaluate_data(
     """Score one read folder: its models from the protocol, its camera check, its run.
 
     Arguments:
-        data: the scored folder (:func:`~ccjax.evaluation.folders.read_folder`).
+        data: the scored folder (:func:`~ccjax.evaluation.scored_folder.read_folder`).
         training: the round's training folders.
         methods: labels fitted to ``world``.
         protocol: the protocol.
@@ -352,7 +352,7 @@ def evaluate_data(
         log: a line per warning and training step.
 
     Returns:
-        :class:`~ccjax.evaluation.folders.FolderEvaluation`.
+        :class:`~ccjax.evaluation.scored_folder.FolderEvaluation`.
     """
     read, options = read or ReadOptions(), options or TrainingOptions()
     trained = list(protocol.trained_labels() if trained is None else trained)
@@ -380,7 +380,7 @@ def evaluate(
     Arguments:
         folders: the :class:`FolderSet` s (distinct names).
         methods: registry labels fitted to each scored folder's world.
-        protocol: what the methods are fitted or trained on (:mod:`ccjax.evaluation.protocols`).
+        protocol: what the methods are fitted or trained on (:mod:`ccjax.evaluation.photo_protocols`).
         read: how images are read and prepared, every folder (default :class:`ReadOptions`).
         options: seed (worlds, folds, training), epochs, pretraining (default :class:`TrainingOptions`).
         world_kind: ``"default"`` (each folder's camera) or ``"barnard1999"``.

@@ -2,20 +2,19 @@
 
 * :mod:`ccjax.experiments.sweeps` -- sweeps over synthetic scenes (Barnard 1999 §4.7), a client of
   the engine (:mod:`ccjax.runs.synthetic`: chunking, padding, compile-ahead, sharding);
-* :mod:`ccjax.experiments.results` -- :class:`SweepResult`: per-scene errors, summaries, sampling errors;
-* :mod:`ccjax.experiments.protocols` -- the thesis tables behind ``ccjax reproduce`` (each condition
-  a synthetic source of the same engine);
+* :mod:`ccjax.experiments.sweep_results` -- :class:`SweepResult`: per-scene errors, summaries,
+  sampling errors;
+* :mod:`ccjax.experiments.table_protocols` -- the thesis tables behind ``ccjax reproduce`` (each
+  condition a synthetic source of the same engine);
 * :mod:`ccjax.experiments.reports` -- the tidy-rows :class:`Report` (text, CSV, JSON);
 * :mod:`ccjax.experiments.plots` -- error versus number of surfaces (:func:`plot_sweep`), world chromaticities;
 * camera studies (:mod:`ccjax.experiments._cameras`) -- the camera list, the SFU-321 camera check, the
   sharpness study and the ground truth's check against a camera (:func:`curve_check`).
 
-The chapter-specific experiments (``chapter5``, ``indexing``, ``evaluation``) and the evaluation
-of folders of photographs (``folders``; ``folder_sets``: the field's protocol over several
-cameras' folders, ``ccjax evaluate DIR DIR ...``; ``pretraining``: the learning curve with and
-without pretraining from spectra) are submodules imported on their own
+The chapter-specific experiments (``chapter5``, ``indexing``) and ``pretraining`` (the learning
+curve with and without pretraining from spectra) are submodules imported on their own
 (``from ccjax.experiments import chapter5``), not from here, so importing this package stays
-cheap.
+cheap. Photo evaluation (folders of photographs with ground truth) is :mod:`ccjax.evaluation`.
 """
 
 from ccjax.evaluation.camera_check import CurveCheck, curve_check
@@ -28,9 +27,8 @@ from ccjax.experiments._cameras import (
     sharpening_study,
 )
 from ccjax.experiments.plots import plot, plot_sweep, plot_world  # plot: plot_sweep's deprecated alias
-from ccjax.experiments.protocols import BASIC_COLUMNS, PROTOCOLS, Condition, Reproduction, reproduce
 from ccjax.experiments.reports import Column, Report
-from ccjax.experiments.results import SweepResult
+from ccjax.experiments.sweep_results import SweepResult
 from ccjax.experiments.sweeps import (
     is_registered,
     require_surface_estimator,
@@ -39,6 +37,7 @@ from ccjax.experiments.sweeps import (
     sweep,
     weights_ready,
 )
+from ccjax.experiments.table_protocols import BASIC_COLUMNS, PROTOCOLS, Condition, Reproduction, reproduce
 
 __all__ = [
     "BASIC_COLUMNS",

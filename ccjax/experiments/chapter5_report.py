@@ -15,7 +15,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ccjax.experiments.chapter5 import COMPARISONS, SHARPENINGS, chapter5_errors
-from ccjax.experiments.results import sampling_error
+from ccjax.experiments.sweep_results import sampling_error
 from ccjax.experiments.sweeps import is_registered
 from ccjax.precision import matmul
 from ccjax.sharpening import (

@@ -1,6 +1,15 @@
-"""The per-image results of photo evaluation, kept under their earlier import path: they live in
-:mod:`ccjax.evaluation.results` (:class:`ImageResults`, :func:`run_images`, :func:`fold_worlds`)."""
+"""Deprecated: the per-image results of photo evaluation; they live in :mod:`ccjax.evaluation`
+(:class:`ccjax.evaluation.ImageResults`). It warns on import and on each use of a name, naming the
+replacement, and will be removed in the next release."""
 
-from ccjax.evaluation.results import ImageResults, fold_worlds, run_images
+from ccjax._deprecation import moved_names, warn_moved_module
 
-__all__ = ["ImageResults", "fold_worlds", "run_images"]
+warn_moved_module("ccjax.experiments.evaluation", "ccjax.evaluation")
+__getattr__, __dir__ = moved_names(
+    "ccjax.experiments.evaluation",
+    {
+        "ImageResults": "ccjax.evaluation.ImageResults",
+        "fold_worlds": "ccjax.evaluation.fold_worlds",
+        "run_images": "ccjax.evaluation.run_images",
+    },
+)

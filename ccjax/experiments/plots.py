@@ -14,12 +14,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ccjax.experiments.results import SweepResult
+from ccjax.experiments.sweep_results import SweepResult
 from ccjax.io.files import new_figure, write_figure
 from ccjax.world import World
 
 if typing.TYPE_CHECKING:  # importing ccjax.experiments stays cheap: evaluation loads on use
-    from ccjax.experiments.evaluation import ImageResults
+    from ccjax.evaluation import ImageResults
 
 STATISTIC_LABELS = {
     "angular": "angular error (degrees)",
@@ -181,7 +181,7 @@ def plot_image_errors(results: ImageResults, path, title: str | None = None) -> 
     relaxed (not ok) are drawn hollow. Both panels have a legend.
 
     Arguments:
-        results: an evaluation with ground truth (:class:`ccjax.experiments.evaluation.ImageResults`).
+        results: an evaluation with ground truth (:class:`ccjax.evaluation.ImageResults`).
         path: the image file to write (atomically, :func:`ccjax.io.files.write_figure`), or a binary file.
         title: the figure title (default: the number of images).
     """

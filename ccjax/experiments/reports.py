@@ -14,6 +14,8 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from ccjax.io.files import csv_text_cell
+
 
 @dataclass(frozen=True)
 class Column:
@@ -107,7 +109,9 @@ class Report:
         buffer = io.StringIO()
         writer = csv.DictWriter(buffer, fieldnames=fieldnames)
         writer.writeheader()
-        writer.writerows(self.rows)
+        # Text cells (paths, labels) that a spreadsheet would read as formulas are neutralised;
+        # numbers are written as numbers (a negative number is not text).
+        writer.writerows({key: csv_text_cell(value) for key, value in row.items()} for row in self.rows)
         return buffer.getvalue()
 
     def to_json(self) -> str:

@@ -17,7 +17,7 @@ import jax
 
 from ccjax.estimators import inputs, registry
 from ccjax.estimators.base import AbstractEstimator
-from ccjax.experiments.results import SweepResult
+from ccjax.experiments.sweep_results import SweepResult
 from ccjax.runs import store
 from ccjax.runs.synthetic import SyntheticSource, run_synthetic
 from ccjax.scenes import Fluorescent, Metallic, RadianceModel, SceneOptions, ShotNoise, Specular

@@ -38,7 +38,7 @@ from ccjax.io.reading import (
     read_image,
     read_mask,
 )
-from ccjax.io.writing import quantise, write_codes, write_dataset, write_linear
+from ccjax.io.writing import encoded_codes, file_run, quantise, write_codes, write_dataset, write_linear
 
 __all__ = [
     "CLIP_FRACTION",
@@ -49,6 +49,8 @@ __all__ = [
     "LinearImage",
     "PngHeader",
     "encode_srgb",
+    "encoded_codes",
+    "file_run",
     "list_images",
     "match_ground_truth",
     "path_key",

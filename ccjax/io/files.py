@@ -37,6 +37,24 @@ def write_file(
         atomic_write(Path(path), blob, replace=overwrite)
 
 
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+"""First characters with which a spreadsheet reads a CSV cell as a formula (OWASP, "CSV injection")."""
+
+
+def csv_text_cell(value):
+    """A text cell of a CSV report made safe to open in a spreadsheet: a string starting with one of
+    :data:`FORMULA_STARTS` (a file named ``=HYPERLINK(...).png``) gets a leading ``'``, which
+    spreadsheets show as text; numbers and other values are returned as they are.
+
+    Arguments:
+        value: a cell's value.
+
+    Returns:
+        The value, neutralised when it is such a string.
+    """
+    return "'" + value if isinstance(value, str) and value.startswith(FORMULA_STARTS) else value
+
+
 def new_figure(**options):
     """A matplotlib figure of its own, outside pyplot: no GUI backend is chosen, nothing has to be
     closed, and pyplot (half a second to import) is not loaded. Saved by :func:`write_figure`.

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ccjax import limits
+from ccjax._numbers import decimal, whole
 from ccjax.io.files import write_file
 from ccjax.io.reading import list_images
 
@@ -111,9 +112,11 @@ def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) 
                 fold = None if fold_column is None else row[fold_column]
                 row = dict(zip(["image", "r", "g", "b"], (row[k] for k in fieldnames[:4]), strict=True))
                 try:
-                    rgb = np.array([float(row["r"]), float(row["g"]), float(row["b"])])
-                except (TypeError, ValueError):
-                    raise ValueError(f"ground truth: {path} line {line}: r,g,b must be numbers") from None
+                    rgb = np.array([decimal(row["r"]), decimal(row["g"]), decimal(row["b"])])
+                except (TypeError, ValueError) as error:
+                    raise ValueError(
+                        f"ground truth: {path} line {line}: r,g,b must be decimal numbers ({error})"
+                    ) from None
                 if not np.all(np.isfinite(rgb)) or np.any(rgb < 0) or rgb.sum() <= 0:
                     raise ValueError(
                         f"ground truth: {path} line {line}: r,g,b must be finite, non-negative, not all zero"
@@ -125,7 +128,7 @@ def read_ground_truth_file(path: str | os.PathLike, *, with_folds: bool = True) 
                     raise ValueError(f"ground truth: {path} lines {lines[name]} and {line} both give image {name!r}")
                 if fold_column is not None:
                     try:
-                        folds[name] = int(fold)  # type: ignore[arg-type]
+                        folds[name] = whole(fold)  # type: ignore[arg-type]
                     except (TypeError, ValueError):
                         raise ValueError(
                             f"ground truth: {path} line {line}: fold must be an integer, got {fold!r}"

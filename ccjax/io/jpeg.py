@@ -185,13 +185,18 @@ def upright_exif(path: str | os.PathLike) -> bytes | None:
     from PIL import Image
 
     try:
-        with _pillow(Path(path)) as image:
-            if image.format not in EXIF_FORMATS:
-                return None
-            source = image.getexif()
-            tags = {tag: source[tag] for tag in CARRIED_TAGS if tag in source}
-            exif = {tag: value for tag, value in source.get_ifd(EXIF_IFD).items() if tag not in DROPPED_EXIF_TAGS}
-            gps = dict(source.get_ifd(GPS_IFD))
+        try:
+            with _pillow(Path(path)) as image:
+                if image.format not in EXIF_FORMATS:
+                    return None
+                source = image.getexif()
+                tags = {tag: source[tag] for tag in CARRIED_TAGS if tag in source}
+                exif = {tag: value for tag, value in source.get_ifd(EXIF_IFD).items() if tag not in DROPPED_EXIF_TAGS}
+                gps = dict(source.get_ifd(GPS_IFD))
+        except Exception:
+            # Pillow opens no raw sensor data (a DNG's CFA image): its first directory's tags,
+            # read by tifffile, still name the camera and the time.
+            tags, exif, gps = _tiff_tags(Path(path)), {}, {}
         if not (tags or exif or gps):
             return None
         out = Image.Exif()
@@ -210,8 +215,32 @@ def upright_exif(path: str | os.PathLike) -> bytes | None:
     return blob if len(blob) <= MAX_EXIF_BYTES else None
 
 
+def _tiff_tags(path: Path) -> dict:
+    """The :data:`CARRIED_TAGS` of a TIFF-based file's first directory (tifffile), text only."""
+    import tifffile
+
+    with tifffile.TiffFile(path) as tiff:
+        page_tags = tiff.pages[0].tags  # pyright: ignore[reportAttributeAccessIssue]
+        return {
+            tag: page_tags[tag].value
+            for tag in CARRIED_TAGS
+            if tag in page_tags and isinstance(page_tags[tag].value, str)
+        }
+
+
+IMAGE_UNIQUE_ID = 0xA420
+"""EXIF's ImageUniqueID (in the EXIF directory): ccjax stores the identifier of the run that wrote
+a JPEG there, shared with the files written with it (its preview)."""
+
+
 def save_jpeg(
-    handle: BinaryIO, codes: np.ndarray, quality: int, *, srgb: bool = False, exif: bytes | None = None
+    handle: BinaryIO,
+    codes: np.ndarray,
+    quality: int,
+    *,
+    srgb: bool = False,
+    exif: bytes | None = None,
+    run: str | None = None,
 ) -> None:
     """Encode ``uint8`` RGB codes as a JPEG (Pillow, libjpeg) into an open file.
 
@@ -223,6 +252,7 @@ def save_jpeg(
             and set EXIF ColorSpace to 1 (sRGB). False: neither, and no ColorSpace carried.
         exif: an EXIF block to write (:func:`upright_exif`); its PixelX/YDimension are set to
             the codes' size.
+        run: the identifier of the run that wrote it, as EXIF ImageUniqueID (:func:`jpeg_run`).
 
     Returns:
         None.
@@ -232,11 +262,14 @@ def save_jpeg(
     tags = Image.Exif()
     if exif:
         tags.load(exif)
-    if exif or srgb:
+    if exif or srgb or run is not None:
         directory = dict(tags.get_ifd(EXIF_IFD))
         directory.pop(COLOR_SPACE, None)
+        directory.pop(IMAGE_UNIQUE_ID, None)  # the input's own is not this file's
         if srgb:
             directory[COLOR_SPACE] = 1
+        if run is not None:
+            directory[IMAGE_UNIQUE_ID] = run
         directory[0xA002], directory[0xA003] = int(codes.shape[1]), int(codes.shape[0])
         tags[EXIF_IFD] = directory
     image = Image.fromarray(np.ascontiguousarray(codes))
@@ -244,4 +277,30 @@ def save_jpeg(
     image.save(handle, "JPEG", quality=quality, exif=tags.tobytes() if len(tags) else b"", **options)
 
 
-__all__ = ["ORIENTATION_TAG", "jpeg_layout", "orient", "read_jpeg", "save_jpeg", "upright_exif"]
+def jpeg_run(path: str | os.PathLike) -> str | None:
+    """The run identifier a JPEG written by ccjax carries (EXIF ImageUniqueID), or None.
+
+    Arguments:
+        path: the file.
+
+    Returns:
+        The identifier, or None.
+    """
+    try:
+        with _opened(Path(path)) as image:
+            value = image.getexif().get_ifd(EXIF_IFD).get(IMAGE_UNIQUE_ID)
+    except Exception:  # not a JPEG Pillow can open: no identifier
+        return None
+    return value if isinstance(value, str) else None
+
+
+__all__ = [
+    "IMAGE_UNIQUE_ID",
+    "ORIENTATION_TAG",
+    "jpeg_layout",
+    "jpeg_run",
+    "orient",
+    "read_jpeg",
+    "save_jpeg",
+    "upright_exif",
+]

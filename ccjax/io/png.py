@@ -17,6 +17,7 @@ import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 import imagecodecs
 import numpy as np
@@ -129,6 +130,22 @@ def png_encoding(path: str | os.PathLike) -> str | None:
     Returns:
         The encoding the file declares, or None.
     """
+    for kind, length, handle in _leading_chunks(path):
+        if kind == b"sRGB":
+            return "sRGB"
+        if kind == b"gAMA" and length == 4:
+            (gamma,) = struct.unpack(">I", handle.read(4))
+            if gamma != LINEAR_GAMMA:
+                return f"gAMA {gamma / 1e5:g}"
+        if kind == b"iCCP" and length <= MAX_PROFILE_BYTES and (profile := _profile(handle.read(length))):
+            if (encoding := icc_encoding(profile)) is not None:
+                return encoding
+    return None
+
+
+def _leading_chunks(path: str | os.PathLike) -> Iterator[tuple[bytes, int, BinaryIO]]:
+    """``(kind, length, handle)`` of each chunk after IHDR and before the image data (the handle at
+    the chunk's data), reading only what the caller reads of each."""
     with open(path, "rb") as handle:
         size = os.fstat(handle.fileno()).st_size
         offset = len(PNG_SIGNATURE) + 25
@@ -136,18 +153,9 @@ def png_encoding(path: str | os.PathLike) -> str | None:
             handle.seek(offset)
             length, kind = struct.unpack(">I4s", handle.read(8))
             if kind in (b"IDAT", b"IEND") or offset + 12 + length > size:
-                return None
-            if kind == b"sRGB":
-                return "sRGB"
-            if kind == b"gAMA" and length == 4:
-                (gamma,) = struct.unpack(">I", handle.read(4))
-                if gamma != LINEAR_GAMMA:
-                    return f"gAMA {gamma / 1e5:g}"
-            if kind == b"iCCP" and length <= MAX_PROFILE_BYTES and (profile := _profile(handle.read(length))):
-                if (encoding := icc_encoding(profile)) is not None:
-                    return encoding
+                return
+            yield kind, length, handle
             offset += 12 + length
-    return None
 
 
 def _profile(data: bytes) -> bytes:
@@ -190,7 +198,9 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
         raise ValueError(f"corrupt or truncated PNG ({error})") from None
 
 
-def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = True, srgb: bool = False) -> None:
+def write_png(
+    path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = True, srgb: bool = False, run: str | None = None
+) -> None:
     """Write ``uint16`` or ``uint8`` ``(H, W, 3)`` as an RGB PNG, atomically
     (:func:`ccjax.io.files.write_file`: readers never see a partial file).
 
@@ -199,23 +209,69 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray, *, overwrite: bool = 
         pixels: the file codes; 16-bit values are stored big-endian, as PNG requires.
         overwrite: replace a file already at ``path`` (else ``FileExistsError``:
             :func:`ccjax.io.outputs.put_in_place`).
-        srgb: the codes are sRGB-encoded: an ``sRGB`` chunk (rendering intent 0, perceptual) goes
-            before the image data, so viewers show the colours right and readers (ccjax's own
-            included) know the codes are not linear. False: no colour chunk (linear data).
+        srgb: the codes are sRGB-encoded (:func:`png_bytes`).
+        run: the identifier of the run that wrote it (:func:`png_bytes`), or None.
 
     Raises:
         ValueError: ``pixels`` is not ``uint8``/``uint16`` ``(H, W, 3)`` with at least one pixel.
+    """
+    write_file(path, png_bytes(pixels, srgb=srgb, run=run), overwrite=overwrite)
+
+
+RUN_KEYWORD = b"ccjax run"
+"""The keyword of the ``tEXt`` chunk holding the identifier of the run that wrote a PNG."""
+
+
+def png_bytes(pixels: np.ndarray, *, srgb: bool = False, run: str | None = None) -> bytes:
+    """The PNG file of ``uint16`` or ``uint8`` ``(H, W, 3)`` codes.
+
+    Arguments:
+        pixels: the file codes; 16-bit values are stored big-endian, as PNG requires.
+        srgb: the codes are sRGB-encoded: an ``sRGB`` chunk (rendering intent 0, perceptual) goes
+            before the image data, so viewers show the colours right and readers (ccjax's own
+            included) know the codes are not linear. False: no colour chunk (linear data).
+        run: an identifier (printable ASCII) stored in a ``tEXt`` chunk, keyword
+            :data:`RUN_KEYWORD`: files written together (an image and its preview) carry the same
+            one (:func:`png_run`).
+
+    Returns:
+        The file's bytes.
+
+    Raises:
+        ValueError: ``pixels`` is not ``uint8``/``uint16`` ``(H, W, 3)`` with at least one pixel, or
+            ``run`` is not printable ASCII.
     """
     pixels = np.asarray(pixels)
     if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"pixels: expected uint8/uint16 (H, W, 3), got {pixels.dtype} {pixels.shape}")
     if pixels.size == 0:
         raise ValueError(f"pixels: a PNG needs at least one pixel, got shape {pixels.shape}")
+    if run is not None and not (run.isascii() and run.isprintable()):
+        raise ValueError(f"run: expected printable ASCII, got {run!r}")
     blob = bytes(imagecodecs.png_encode(np.ascontiguousarray(pixels), level=COMPRESSION_LEVEL))
-    if srgb:
-        at = len(PNG_SIGNATURE) + 25  # right after IHDR, before any PLTE or IDAT (PNG 1.2 §4.2.2.5)
-        blob = blob[:at] + _chunk(b"sRGB", b"\0") + blob[at:]
-    write_file(path, blob, overwrite=overwrite)
+    at = len(PNG_SIGNATURE) + 25  # right after IHDR, before any PLTE or IDAT (PNG 1.2 §4.2.2.5)
+    extra = _chunk(b"sRGB", b"\0") if srgb else b""
+    if run is not None:
+        extra += _chunk(b"tEXt", RUN_KEYWORD + b"\0" + run.encode("ascii"))
+    return blob[:at] + extra + blob[at:]
+
+
+def png_run(path: str | os.PathLike) -> str | None:
+    """The run identifier a PNG carries (:func:`png_bytes`), read from the chunks before its image
+    data, or None.
+
+    Arguments:
+        path: the file.
+
+    Returns:
+        The identifier, or None.
+    """
+    for kind, length, handle in _leading_chunks(path):
+        if kind == b"tEXt" and length <= 200:
+            keyword, _, text = handle.read(length).partition(b"\0")
+            if keyword == RUN_KEYWORD:
+                return text.decode("ascii", "replace")
+    return None
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:

@@ -8,7 +8,9 @@ a TIFF the sRGB ICC profile, a JPEG the profile and EXIF ColorSpace 1. Linear fi
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -16,8 +18,8 @@ from numpy.typing import ArrayLike
 from ccjax.io.files import write_file
 from ccjax.io.ground_truth import write_ground_truth
 from ccjax.io.icc import srgb_profile
-from ccjax.io.jpeg import save_jpeg
-from ccjax.io.png import write_png
+from ccjax.io.jpeg import jpeg_run, save_jpeg
+from ccjax.io.png import png_bytes, png_run, write_png
 
 CHUNK_VALUES = 1 << 22
 """Values converted at a time by the writers (float64 working copies of about 32 MB)."""
@@ -90,6 +92,7 @@ def write_codes(
     overwrite: bool = True,
     srgb: bool = False,
     exif: bytes | None = None,
+    run: str | None = None,
 ) -> None:
     """Write file codes ``(H, W, 3)`` (``uint8`` or ``uint16``) as a PNG or TIFF, or ``uint8`` as a
     JPEG (quality :data:`JPEG_QUALITY`, Pillow), by suffix, atomically (:func:`write_file`; a TIFF
@@ -103,12 +106,33 @@ def write_codes(
             codes, no colour tag.
         exif: an EXIF block for a JPEG (:func:`ccjax.io.jpeg.upright_exif`); PNG and TIFF
             files are written without it.
+        run: the identifier of the run that wrote it (:func:`file_run` reads it back), or None.
 
     Returns:
         None.
 
     Raises:
         ValueError: another suffix, or 16-bit codes for a JPEG (8 bits per channel).
+    """
+    write_file(path, encoded_codes(path, codes, srgb=srgb, exif=exif, run=run), overwrite=overwrite)
+
+
+def encoded_codes(
+    path: str | os.PathLike, codes: np.ndarray, *, srgb: bool = False, exif: bytes | None = None, run: str | None = None
+) -> bytes | Callable[[BinaryIO], object]:
+    """The file :func:`write_codes` writes, not yet written: bytes, or a function that streams it
+    into an open binary file (TIFF, JPEG), for writers that put several files in place together
+    (:func:`ccjax._cache.atomic_write_files`).
+
+    Arguments:
+        path: the file's name (its suffix chooses the format).
+        codes, srgb, exif, run: as :func:`write_codes`.
+
+    Returns:
+        The bytes, or the streaming function.
+
+    Raises:
+        ValueError: as :func:`write_codes`.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -117,19 +141,46 @@ def write_codes(
     if suffix in (".jpg", ".jpeg"):
         if codes.dtype != np.uint8:
             raise ValueError(f"output: {path} is a JPEG, which holds 8 bits per channel; got {codes.dtype} codes")
-        write_file(
-            path, lambda handle: save_jpeg(handle, codes, JPEG_QUALITY, srgb=srgb, exif=exif), overwrite=overwrite
-        )
-    elif suffix == ".png":
-        write_png(path, codes, overwrite=overwrite, srgb=srgb)
-    else:
-        import tifffile
+        return lambda handle: save_jpeg(handle, codes, JPEG_QUALITY, srgb=srgb, exif=exif, run=run)
+    if suffix == ".png":
+        return png_bytes(codes, srgb=srgb, run=run)
+    import tifffile
 
-        # tifffile's ``iccprofile`` writes tag 34675 (:data:`ccjax.io.srgb.ICC_PROFILE_TAG`).
-        icc = srgb_profile() if srgb else None
-        write_file(
-            path, lambda handle: tifffile.imwrite(handle, codes, photometric="rgb", iccprofile=icc), overwrite=overwrite
-        )
+    # tifffile's ``iccprofile`` writes tag 34675 (:data:`ccjax.io.srgb.ICC_PROFILE_TAG`); the run's
+    # identifier is the ImageDescription (tifffile's own shape description is left out).
+    icc = srgb_profile() if srgb else None
+    description = {} if run is None else {"description": f"{TIFF_RUN_PREFIX}{run}", "metadata": None}
+    return lambda handle: tifffile.imwrite(handle, codes, photometric="rgb", iccprofile=icc, **description)
+
+
+TIFF_RUN_PREFIX = "ccjax run "
+"""How a TIFF's ImageDescription names the run that wrote it."""
+
+
+def file_run(path: str | os.PathLike) -> str | None:
+    """The identifier of the run that wrote an image ccjax wrote (PNG ``tEXt``, JPEG EXIF
+    ImageUniqueID, TIFF ImageDescription), or None: a corrected image and its preview written
+    together carry the same one, so a pair from two runs is seen for what it is.
+
+    Arguments:
+        path: a ``.png``, ``.jpg``/``.jpeg`` or ``.tif``/``.tiff`` file.
+
+    Returns:
+        The identifier, or None.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix == ".png":
+        return png_run(path)
+    if suffix in (".jpg", ".jpeg"):
+        return jpeg_run(path)
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(path) as tiff:
+            description = tiff.pages[0].description  # pyright: ignore[reportAttributeAccessIssue]
+    except Exception:  # not a TIFF tifffile can open: no identifier
+        return None
+    return description.removeprefix(TIFF_RUN_PREFIX) if description.startswith(TIFF_RUN_PREFIX) else None
 
 
 def write_dataset(

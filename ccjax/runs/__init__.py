@@ -11,7 +11,7 @@
   source, compilation timed apart.
 * :mod:`ccjax.runs.folders`: the Python calls over a folder, :func:`estimate_folder` and
   :func:`correct_folder` (evaluation with folds and training:
-  :func:`ccjax.experiments.folders.evaluate_folder`).
+  :func:`ccjax.evaluation.evaluate_folder`).
 * :mod:`ccjax.runs.hosts`: scale-out primitives: processes under ``jax.distributed``, the item
   axis split over processes and sharded over a device mesh, results pooled.
 

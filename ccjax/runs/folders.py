@@ -9,15 +9,18 @@ Files that cannot be used do not stop the run: each has its failure record in th
 from __future__ import annotations
 
 import os
+import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ccjax import io
+from ccjax._cache import atomic_write_files
 from ccjax.estimators.base import AbstractEstimator, Estimate
 from ccjax.io.jpeg import upright_exif
 from ccjax.io.outputs import path_key
+from ccjax.io.png import png_bytes
 from ccjax.io.preview import srgb_preview_rows
 from ccjax.io.raw import camera_to_srgb
 from ccjax.io.reading import MAX_PIXELS, LinearImage
@@ -274,17 +277,17 @@ def correct_folder(
             codes[rows] = io.quantise(piece) if srgb is None else io.encode_srgb(piece @ colours.T, srgb)
         # A JPEG output keeps its input's EXIF (camera, times), upright as its pixels are.
         exif = upright_exif(image.path) if written[index].suffix.lower() in (".jpg", ".jpeg") else None
-        io.write_codes(written[index], codes, overwrite=overwrite, srgb=srgb is not None, exif=exif)
-        del codes
+        # The image and its preview are one pair: both are written whole to temporaries before
+        # either replaces anything, then put in place together (atomic_write_files, with Ctrl-C
+        # and SIGTERM held over the renames), and both carry this pair's identifier (io.file_run).
+        run = uuid.uuid4().hex
+        files = {written[index]: io.encoded_codes(written[index], codes, srgb=srgb is not None, exif=exif, run=run)}
         preview_file = shown[index]
         if preview_file is not None:
-            try:
-                preview = srgb_preview_rows(corrected, image.rgb.shape, colours, size=preview_size)
-                io.write_png(preview_file, preview, overwrite=overwrite, srgb=True)
-            except BaseException:
-                # An output without its preview (a full disk) would make a rerun refuse the output.
-                written[index].unlink(missing_ok=True)
-                raise
+            preview = srgb_preview_rows(corrected, image.rgb.shape, colours, size=preview_size)
+            files[preview_file] = png_bytes(preview, srgb=True, run=run)
+        atomic_write_files(files, replace=overwrite)
+        del codes
         if each is not None:
             each(index, estimate, written[index], shown[index])
 

@@ -10,10 +10,11 @@ from ccjax.estimators.base import AbstractEstimator
 from ccjax.estimators.correlation import ColourByCorrelation, ColourByCorrelation3D
 from ccjax.estimators.ffcc import FFCC
 from ccjax.estimators.neural import LogChromaNet, NeuralNet
+from ccjax.estimators.simple import ShadesOfGrey
 from ccjax.estimators.spatial import GreyEdge
 
 # What each family learns: the Colour by Correlation matrix (Barnard 1999 §4.5.4, ch. 10; starts
-# from the camera's spectral fit), grey edge's Minkowski norm, the net's weights (§4.5.5), FFCC's
+# from the camera's spectral fit), grey edge's and shades of grey's Minkowski norm, the net's weights (§4.5.5), FFCC's
 # filters and bias map (Barron & Tsai 2017 §3). (A
 # sharpened model's inner estimator is fitted to the sharpened world, so its transform is learned
 # through a traceable fit instead: ccjax.sharpening.learned_sharpening.)
@@ -21,6 +22,7 @@ _LEARNABLE = {
     ColourByCorrelation: lambda m: m.log_probability,
     ColourByCorrelation3D: lambda m: m.log_probability,
     GreyEdge: lambda m: m.p,
+    ShadesOfGrey: lambda m: m.p,
     NeuralNet: lambda m: m.net,
     LogChromaNet: lambda m: m.net,
     FFCC: lambda m: (m.filters, m.bias),
@@ -58,8 +60,8 @@ def learnable(model: AbstractEstimator):
 
 
 def constrain(model: AbstractEstimator) -> AbstractEstimator:
-    """Re-establish what a learned model must satisfy after an update: grey edge's Minkowski norm
-    stays a norm (>= 1).
+    """Re-establish what a learned model must satisfy after an update: grey edge's and shades of
+    grey's Minkowski norm stays a norm (>= 1).
 
     Arguments:
         model: the updated model.
@@ -69,6 +71,6 @@ def constrain(model: AbstractEstimator) -> AbstractEstimator:
     """
     import jax.numpy as jnp
 
-    if isinstance(model, GreyEdge):
+    if isinstance(model, (GreyEdge, ShadesOfGrey)):
         return eqx.tree_at(lambda m: m.p, model, jnp.maximum(model.p, 1.0))
     return model

@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from ccjax import limits
 from ccjax._cache import content_key
 from ccjax._entries import Expect, read_arrays, write_arrays
 from ccjax.estimators.base import AbstractEstimator
@@ -99,6 +100,7 @@ class Pretraining:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name}: expected a positive integer, got {value!r}")
+        limits.require_count(self.images, "images", 1, limits.RENDERED_IMAGES)
         if not self.locus > 0:
             raise ValueError(f"locus: expected a positive log-chroma distance, got {self.locus!r}")
         low, high = self.exposure

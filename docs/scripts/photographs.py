@@ -2,7 +2,7 @@
 photographs with ground truth (each set 3-fold cross-validated, the learned methods trained
 within the folds; over the NUS-8 cameras, the geometric mean of each statistic, as the field
 reports it), with training seconds per fold and inference milliseconds per image. The protocol
-is the library's (:mod:`ccjax.experiments.folder_sets`, ``ccjax evaluate DIR DIR ...``); this
+is the library's (:func:`ccjax.evaluation.evaluate_folder_sets`, ``ccjax evaluate DIR DIR ...``); this
 script chooses the sets and their cameras and writes the page's table.
 
 Run::
@@ -54,10 +54,10 @@ def _subset(directory: pathlib.Path, count: int, scratch: pathlib.Path) -> pathl
 
 
 def evaluate_sets(directories, methods, train, saturation: float, models: pathlib.Path | None) -> dict:
-    """Each set's 3-fold run (:func:`ccjax.experiments.folder_sets.evaluate_folder_sets`, each set
+    """Each set's 3-fold run (:func:`ccjax.evaluation.evaluate_folder_sets`, each set
     with its camera, world-based labels left out of sets without curves):
     ``{set: {camera, images, methods: {label: {mean, median, ..., ms_per_image, train_seconds}}}}``."""
-    from ccjax.experiments.folder_sets import FolderSet, evaluate_folder_sets
+    from ccjax.evaluation import FolderSet, evaluate_folder_sets
 
     folders = [
         FolderSet(directory, directory / "groundtruth.csv", CAMERAS.get(directory.name)) for directory in directories
@@ -80,7 +80,7 @@ def evaluate_sets(directories, methods, train, saturation: float, models: pathli
 
 def nus8_geometric_means(sets: dict) -> dict:
     """Per label present in every NUS-8 set: the geometric mean of each statistic over the cameras."""
-    from ccjax.experiments.folder_sets import geometric_means
+    from ccjax.evaluation import geometric_means
 
     nus = [sets[name]["methods"] for name in NUS8 if name in sets]
     return {"cameras": len(nus), "methods": geometric_means(nus)} if nus else {}
