@@ -191,6 +191,8 @@ def test_train_command(image_set, tmp_path, capsys):
             "1",
             "--out",
             str(out),
+            "--camera",
+            "Canon EOS 5D Mark II",  # the default world's camera, which rendered the images
             "--no-progress",
         ]
     )
