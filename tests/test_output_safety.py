@@ -448,7 +448,9 @@ def _run_kill_trials(tmp_path: Path, trials: int, seed: int = 0) -> dict[str, in
             final = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
             temporary = [p.name for p in out.iterdir() if p.name.startswith(".")]
             partial = [
-                name for name, blob in final.items() if _without_run(blob) not in (_without_run(new[name]), old.get(name))
+                name
+                for name, blob in final.items()
+                if _without_run(blob) not in (_without_run(new[name]), old.get(name))
             ]
             counts["partial"] += len(partial)
             assert not partial, (trial, kill, partial)
