@@ -19,7 +19,7 @@ import os
 import re
 import sys
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, BinaryIO, TypeVar
 
@@ -57,7 +57,12 @@ def cache_directory() -> Path:
 
 def enable_compilation_cache() -> None:
     """Keep XLA's compiled programs in ``<cache>/xla`` (unless the user configured a cache), so a
-    second run of a command skips compilation as well as fitting."""
+    second run of a command skips compilation as well as fitting. Empty programs a full disk left
+    there are removed first (:func:`remove_empty_programs`).
+
+    Returns:
+        None.
+    """
     # The option is a dynamic attribute of jax.config (pyright cannot see it).
     if not getattr(jax.config, "jax_compilation_cache_dir"):  # noqa: B009
         folder = cache_directory() / "xla"
@@ -68,9 +73,50 @@ def enable_compilation_cache() -> None:
         if not os.access(folder, os.W_OK | os.X_OK):
             # A read-only cache only costs compile time; JAX would warn on every program it compiles.
             return
+        remove_empty_programs(folder)
         jax.config.update("jax_compilation_cache_dir", str(folder))
         # Small programs too: a command compiles dozens of them, each well under a second.
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.05)
+
+
+COMPILED_SUFFIX = "-cache"
+"""The name ending of a compiled program in JAX's persistent compilation cache (its other files,
+``-atime`` stamps and the ``.lockfile``, are kept)."""
+
+
+def remove_empty_programs(folder: str | os.PathLike) -> list[Path]:
+    """Remove the empty compiled programs from JAX's compilation cache ``folder``.
+
+    JAX writes an entry in place (``Path.write_bytes``): a full disk leaves a zero-byte file, which
+    every later run fails to read ("Error reading persistent compilation cache entry") and never
+    replaces. One directory scan (sizes from ``os.scandir``, no file opened); a file that cannot be
+    removed is left (it costs a warning, not a result).
+
+    Arguments:
+        folder: the compilation cache folder.
+
+    Returns:
+        The files removed (none when ``folder`` cannot be listed).
+    """
+    removed: list[Path] = []
+    try:
+        with os.scandir(folder) as entries:
+            empty = [
+                entry.path
+                for entry in entries
+                if entry.name.endswith(COMPILED_SUFFIX)
+                and entry.is_file(follow_symlinks=False)
+                and entry.stat(follow_symlinks=False).st_size == 0
+            ]
+    except OSError:
+        return removed
+    for path in empty:
+        try:
+            os.unlink(path)
+        except OSError:
+            continue
+        removed.append(Path(path))
+    return removed
 
 
 @functools.cache
@@ -348,6 +394,11 @@ def load_model(path: Path, like: ModelT) -> ModelT:
 
     Returns:
         ``like`` with the stored leaves.
+
+    Raises:
+        ValueError: an unreadable or mismatched pair, leaves that do not fit ``like``, non-finite
+            leaves, leaves a class's own checks refuse, or a ``fallback`` light that is not finite
+            and non-negative with a positive channel (each message names the file).
     """
     record = read_model_metadata(path)
     # A file far larger than the skeleton's leaves is not this model: refused before it is read.
@@ -377,25 +428,50 @@ def load_model(path: Path, like: ModelT) -> ModelT:
             raise ValueError(f"model: {path} holds non-finite values")
     try:
         _check_modules(model)
+        _check_fallback_lights(model)
     except ValueError as error:
         raise ValueError(f"model: {path}: {error}") from None
     return model
 
 
+def _modules(tree: Any) -> Iterator[eqx.Module]:
+    """Every equinox Module in ``tree`` (itself included), through Module and dataclass fields,
+    lists, tuples and dicts."""
+    if isinstance(tree, eqx.Module):
+        yield tree
+    if isinstance(tree, eqx.Module) or (dataclasses.is_dataclass(tree) and not isinstance(tree, type)):
+        for field in dataclasses.fields(tree):
+            yield from _modules(getattr(tree, field.name, None))
+    elif isinstance(tree, (list, tuple)):
+        for item in tree:
+            yield from _modules(item)
+    elif isinstance(tree, dict):
+        for item in tree.values():
+            yield from _modules(item)
+
+
 def _check_modules(tree: Any) -> None:
     """Run equinox's ``__check_init__`` of every Module in ``tree`` again: deserialised leaves
     never went through a constructor, and a file's leaves must meet the class's own checks."""
-    if isinstance(tree, eqx.Module):
-        for cls in type(tree).__mro__:
+    for module in _modules(tree):
+        for cls in type(module).__mro__:
             check = cls.__dict__.get("__check_init__")
             if check is not None:
-                check(tree)
-    if isinstance(tree, eqx.Module) or (dataclasses.is_dataclass(tree) and not isinstance(tree, type)):
-        for field in dataclasses.fields(tree):
-            _check_modules(getattr(tree, field.name, None))
-    elif isinstance(tree, (list, tuple)):
-        for item in tree:
-            _check_modules(item)
-    elif isinstance(tree, dict):
-        for item in tree.values():
-            _check_modules(item)
+                check(module)
+
+
+def _check_fallback_lights(tree: Any) -> None:
+    """Refuse a ``fallback`` light (a model's answer for a scene without data) that is not a light,
+    by the rule of :func:`ccjax.estimators.known.known_light`: finite, non-negative, with a positive
+    channel. A model file's leaves never went through the fit that made them, and a fallback of
+    ``[-1, -1, -1]`` or ``[0, 0, 0]`` would otherwise be written into corrected images."""
+    for module in _modules(tree):
+        light = getattr(module, "fallback", None)
+        if not isinstance(light, (jax.Array, np.ndarray)):
+            continue
+        values = np.asarray(light, np.float64)
+        if not (np.all(np.isfinite(values)) and np.all(values >= 0) and np.any(values > 0)):
+            raise ValueError(
+                f"the fallback light of its {type(module).__name__} is {values.tolist()}; a fallback light must be "
+                "finite and non-negative with a positive channel"
+            )

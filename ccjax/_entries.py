@@ -8,7 +8,9 @@ any array is allocated: the record (bounded JSON, this schema, kind and key), th
 headers (stored members, no objects, sizes that add up, at most
 :data:`ccjax.limits.CACHE_ENTRY_BYTES`), then the arrays' digest and, for arrays the caller
 describes (:class:`Expect`), the names, dtypes, shapes and values (finite, in range). An entry
-that fails any check is removed and recomputed, with one :class:`CacheEntryRejected` warning.
+that fails any check is removed and recomputed, with one :class:`CacheEntryRejected` warning. A
+file where the cache folder (or a kind's folder in it) should be is said once per process
+(:class:`CacheFolderUnusable`); results are then computed and not cached.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import hashlib
 import io
 import json
 import math
+import os
 import warnings
 import zipfile
 from collections.abc import Callable, Mapping
@@ -44,6 +47,50 @@ class Rejected(ValueError):
 class CacheEntryRejected(UserWarning):
     """A cache entry did not verify (damaged, edited, another schema, other facts or arrays than
     asked for); it is computed again and replaced."""
+
+
+class CacheFolderUnusable(UserWarning):
+    """The cache folder, or a folder inside it, is a file: nothing is read from or written to it
+    under that folder, so results are computed and not cached (said once per process)."""
+
+
+_UNUSABLE_SAID: set[str] = set()
+"""The files in the cache's way already named by a :class:`CacheFolderUnusable` warning."""
+
+
+def file_in_the_way(path: Path) -> Path | None:
+    """The nearest existing folder above ``path`` when it is not a folder (a regular file where
+    the cache folder, or a kind's folder in it, should be), else None.
+
+    Arguments:
+        path: a cache entry's path.
+
+    Returns:
+        The file in the way, or None when the nearest existing parent is a folder.
+    """
+    for parent in path.parents:
+        # lexists is False below a file (ENOTDIR): the first existing parent decides.
+        if os.path.lexists(parent):
+            return None if parent.is_dir() else parent
+    return None
+
+
+def say_cache_unusable(blocker: Path, *, stacklevel: int = 4) -> None:
+    """Warn once per process (per file in the way) that results are not cached.
+
+    Arguments:
+        blocker: the file where a cache folder should be (:func:`file_in_the_way`).
+        stacklevel: as :func:`warnings.warn`'s.
+    """
+    if str(blocker) in _UNUSABLE_SAID:
+        return
+    _UNUSABLE_SAID.add(str(blocker))
+    warnings.warn(
+        f"cache folder {blocker} is a file, not a folder; results are not cached in this run "
+        "(remove the file, or point CCJAX_CACHE at a folder)",
+        CacheFolderUnusable,
+        stacklevel=stacklevel,
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,9 +178,10 @@ def read_entry(
         expect: when given, exactly these arrays, of these kinds, shapes and ranges.
 
     Returns:
-        ``(skeleton, arrays)``, or None when ``path`` does not exist or holds an entry of the
-        layout before this schema (``{"format": 1, ...}`` without ``"schema"``), which the caller
-        replaces without a warning.
+        ``(skeleton, arrays)``, or None when ``path`` does not exist (a file where a folder above
+        it should be is said once per process, :class:`CacheFolderUnusable`) or holds an entry of
+        the layout before this schema (``{"format": 1, ...}`` without ``"schema"``), which the
+        caller replaces without a warning.
 
     Raises:
         Rejected: the entry exists but does not verify.
@@ -143,6 +191,14 @@ def read_entry(
             raise Rejected(f"the record is over {limits.RECORD_BYTES.value} bytes")
         text = path.read_bytes()
     except FileNotFoundError:
+        return None
+    except NotADirectoryError as error:
+        # A file where the cache folder should be: no entry can be there, and it is said once
+        # per process, not once per entry as a rejected one would be.
+        blocker = file_in_the_way(path)
+        if blocker is None:
+            raise Rejected(f"unreadable record: {error}") from None
+        say_cache_unusable(blocker)
         return None
     except OSError as error:
         raise Rejected(f"unreadable record: {error}") from None
@@ -339,14 +395,17 @@ def cached_arrays(
 __all__ = [
     "SCHEMA",
     "CacheEntryRejected",
+    "CacheFolderUnusable",
     "Expect",
     "Rejected",
     "cached_arrays",
     "digest",
+    "file_in_the_way",
     "normal_facts",
     "read_arrays",
     "read_entry",
     "reject",
+    "say_cache_unusable",
     "write_arrays",
     "write_entry",
 ]

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 
-__all__ = ["decimal", "whole"]
+__all__ = ["decimal", "first_not_decimal", "whole"]
 
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _WHOLE = re.compile(r"[+-]?[0-9]+")
@@ -37,6 +38,24 @@ def decimal(text: str) -> float:
     if not math.isfinite(number):
         raise ValueError(f"{text!r} is too large to be a finite number")
     return number
+
+
+def first_not_decimal(texts: Sequence[str]) -> int | None:
+    """Where the first text that :func:`decimal` refuses stands, for a whole column of a file in
+    one call (a call per cell costs more than the parsing); the caller parses that one text with
+    :func:`decimal` for the message.
+
+    Arguments:
+        texts: the written values.
+
+    Returns:
+        Its index, or None when every text is a finite decimal number.
+    """
+    for index, text in enumerate(texts):
+        value = str(text).strip(" \t")
+        if not _DECIMAL.fullmatch(value) or not math.isfinite(float(value)):
+            return index
+    return None
 
 
 def whole(text: str) -> int:

@@ -58,16 +58,20 @@ def angular_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "
 
 
 def rg_error(estimate: Float[ArrayLike, "... 3"], truth: Float[ArrayLike, "... 3"]) -> Float[Array, "..."]:
-    """Euclidean distance of (r, g) chromaticities (thesis measure 2).
+    """Euclidean distance of (r, g) chromaticities (thesis measure 2), computed on each light divided
+    by its largest channel, so any scale gives the same distance.
 
     Arguments:
         estimate: ``(..., 3)`` estimated illuminant RGBs.
         truth: ``(..., 3)`` true illuminant RGBs.
 
     Returns:
-        ``(...)`` the distances.
+        ``(...)`` the distances (the same at any scale of either light).
     """
-    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
+    # Each light divided by its largest channel first: a chromaticity is scale-free, but its float32
+    # division by R+G+B is not (the sum's reciprocal is subnormal above about 8.5e37 and flushed
+    # to zero, which gave an error of 0 between [9e37, 0, 0] and [0, 9e37, 0]).
+    estimate, truth = _unit_scale(jnp.asarray(estimate)), _unit_scale(jnp.asarray(truth))
     return _safe_norm(rg(estimate) - rg(truth))
 
 

@@ -164,7 +164,7 @@ def test_training_objective_gradients_x64():
             return loss((jnp.asarray(filters), jnp.asarray(bias)), scales, histogram_fft, truth, weights, 1.0, 0.125)
 
         assert np.isfinite(float(objective(*latent)))
-        check_grads(objective, latent, order=1, modes=["rev"], eps=1e-6)
+        check_grads(jax.jit(objective), latent, order=1, modes=["rev"], eps=1e-6)
 
 
 def _synthetic_scenes(seed: int, count: int, size: int = 12):

@@ -201,7 +201,7 @@ def model_records(draw) -> bytes:
         depth = draw(st.sampled_from([65, 1000, 100_000]))
         return b"[" * depth + b"]" * depth
     if kind == "huge":
-        return b'{"a": "' + b"x" * (limits.RECORD_BYTES.value + 1) + b'"}'
+        return b'{"a": "' + b"x" * (int(limits.RECORD_BYTES.value) + 1) + b'"}'
     return draw(st.binary(max_size=64))
 
 
@@ -215,8 +215,87 @@ def test_model_records_are_refused_in_one_line(tmp_path, record, leaves):
     assert "\n" not in str(caught.value) and "model" in str(caught.value)
 
 
+@pytest.fixture(scope="module")
+def grey_world_model(small_test_world):
+    """A fitted grey-world model (its ``fallback`` is the light edited below)."""
+    return store.fit("GW", small_test_world)
+
+
+light_values = st.one_of(
+    st.sampled_from([0.0, -0.0, 1.0, -1.0, 1e-30, 1e30, -1e-30, float("nan"), float("inf"), float("-inf")]),
+    st.floats(allow_nan=True, allow_infinity=True, width=32),
+)
+
+
+@given(st.lists(light_values, min_size=3, max_size=3))
+@example([-1.0, -1.0, -1.0])
+@example([0.0, 0.0, 0.0])
+@example([0.0, 0.0, 1.0])
+@settings(FUZZ, max_examples=60)
+def test_model_files_with_any_fallback_light_load_it_or_are_refused(tmp_path, grey_world_model, light):
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from ccjax import _cache
+
+    edited = eqx.tree_at(lambda m: m.fallback, grey_world_model, jnp.asarray(light, jnp.float32))
+    path = _cache.save_model(tmp_path / "model.eqx", edited, {"label": "GW"})
+    stored = np.asarray(light, np.float32).astype(np.float64)
+    is_light = np.all(np.isfinite(stored)) and np.all(stored >= 0) and np.any(stored > 0)
+    try:
+        loaded = _cache.load_model(path, grey_world_model)
+    except ValueError as error:
+        assert not is_light and "\n" not in str(error) and str(path) in str(error)
+        return
+    assert is_light
+    np.testing.assert_array_equal(np.asarray(loaded.fallback), stored.astype(np.float32))  # pyright: ignore[reportAttributeAccessIssue]
+
+
 # ---------------------------------------------------------------------------------------------
 # cache entries
+
+
+@given(
+    st.sampled_from(["the cache", "a kind's folder"]),
+    st.lists(st.sampled_from(["fits", "world", "sweeps", "neural"]), min_size=1, max_size=6),
+)
+@settings(FUZZ, max_examples=30)
+def test_a_file_in_place_of_a_cache_folder_is_said_once(where, kinds):
+    import warnings
+
+    # A fresh folder per example: the warning is said once per process and file in the way.
+    with tempfile.TemporaryDirectory() as root:
+        cache = Path(root) / "cache"
+        blocker = cache if where == "the cache" else cache / kinds[0]
+        if where != "the cache":
+            cache.mkdir()
+        blocker.write_text("a file")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for index, kind in enumerate(kinds):
+                path = cache / kind / f"k{index}.json"
+                try:
+                    assert _entries.read_entry(path, kind, f"k{index}") is None
+                except _entries.Rejected:
+                    raise AssertionError(f"{path}: an entry that cannot exist is not a rejected one") from None
+        assert [w.category for w in caught] == [_entries.CacheFolderUnusable]
+        assert str(blocker) in str(caught[0].message) and "not cached" in str(caught[0].message)
+
+
+@given(st.lists(st.tuples(st.sampled_from(["-cache", "-atime", ".lockfile", ""]), st.integers(0, 3)), max_size=8))
+@settings(FUZZ, max_examples=40)
+def test_only_empty_compiled_programs_are_removed(entries):
+    from ccjax import _cache
+
+    with tempfile.TemporaryDirectory() as root:
+        folder = Path(root)
+        for index, (ending, size) in enumerate(entries):
+            (folder / f"jit_f{index}{ending}").write_bytes(b"x" * int(size))
+        removed = {path.name for path in _cache.remove_empty_programs(folder)}
+        empty = {f"jit_f{i}-cache" for i, (ending, size) in enumerate(entries) if ending == "-cache" and size == 0}
+        assert removed == empty
+        kept = {f"jit_f{i}{ending}" for i, (ending, _) in enumerate(entries)} - empty
+        assert {path.name for path in folder.iterdir()} == kept
 
 
 @pytest.fixture(scope="module")

@@ -32,9 +32,13 @@ def _folder(path, count=60, seed=1):
 
 @pytest.mark.slow  # about 25 s on 2 shared cores: two trainings stopped while compiling
 def test_train_stopped_while_compiling_exits_130_or_143_without_a_crash(tmp_path):
+    """One training stopped by SIGINT and one by SIGTERM 6-8 s in, while XLA compiles;
+    ``CCJAX_TRAIN_TRIALS=N`` stops N trainings by SIGINT instead (20 for the full check)."""
     folder = _folder(tmp_path / "set")
     rng = random.Random(0)
-    for trial, number in enumerate([signal.SIGINT, signal.SIGTERM]):
+    trials = os.environ.get("CCJAX_TRAIN_TRIALS")
+    numbers = [signal.SIGINT] * int(trials) if trials else [signal.SIGINT, signal.SIGTERM]
+    for trial, number in enumerate(numbers):
         env = dict(os.environ, CCJAX_CACHE=str(tmp_path / f"cache{trial}"))
         out = tmp_path / f"m{trial}.eqx"
         command = [sys.executable, "-m", "ccjax", "train", str(folder), "--method", "FFCC", "--out", str(out)]
@@ -92,6 +96,57 @@ def test_a_full_disk_while_writing_the_pair_keeps_the_previous_pair(tmp_path, mo
     monkeypatch.undo()
     assert {name: (tmp_path / name).read_bytes() for name in before} == before
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.slow  # about 30 s on 2 shared cores: 20 corrections of a small photograph
+def test_a_disk_full_at_any_byte_keeps_the_previous_pair_or_writes_the_new_one(tmp_path, monkeypatch, capsys):
+    """``correct --overwrite`` with the disk full after a random number of bytes (20 trials, from
+    none to more than the new pair needs; ``CCJAX_DISK_TRIALS`` for more): every time the output
+    and its preview are the previous pair (exit 2, the error names a file) or the new one (exit 0),
+    one run identifier for both, and no temporary is left."""
+    import builtins
+    import io as python_io
+
+    _photo(tmp_path / "a.png", 0)
+    argv = ["correct", str(tmp_path / "a.png"), str(tmp_path / "out.tif"), "--method", "GW", "--no-progress"]
+    assert cli.main(argv) == 0
+    pair = (tmp_path / "out.tif", tmp_path / "out_tif_preview.png")
+    size = sum(path.stat().st_size for path in pair)
+    real_open = builtins.open
+    budget = [0]
+
+    class FullDisk(python_io.FileIO):
+        def write(self, data):  # the device fills up after budget[0] more bytes
+            count = min(len(data), budget[0])
+            if count == 0 and len(data):
+                raise OSError(28, "No space left on device")
+            budget[0] -= count
+            return super().write(memoryview(data)[:count])
+
+    def opened(file, mode="r", *args, **kwargs):
+        if "w" in mode and "b" in mode and os.path.basename(str(file)).startswith(".out"):
+            return python_io.BufferedWriter(FullDisk(file, "w"))
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", opened)
+    rng = random.Random(4)
+    outcomes = []
+    for trial in range(int(os.environ.get("CCJAX_DISK_TRIALS", "20"))):
+        previous = io.file_run(pair[0])
+        assert previous is not None and io.file_run(pair[1]) == previous
+        _photo(tmp_path / "a.png", 10 + trial)  # another photograph: another pair
+        budget[0] = rng.randrange(0, int(size * 1.3))
+        status = cli.main([*argv, "--overwrite"])
+        err = capsys.readouterr().err
+        now = io.file_run(pair[0])
+        assert now is not None and io.file_run(pair[1]) == now, (trial, budget, err)
+        if status == 0:
+            assert now != previous, trial
+        else:
+            assert status == 2 and now == previous and "No space left on device" in err, (trial, status, err)
+        assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")], trial
+        outcomes.append(status)
+    assert 0 in outcomes and 2 in outcomes  # the budgets reached both ends
 
 
 @pytest.mark.slow  # about 45 s on 2 shared cores: interrupted corrections of a 6 MP image

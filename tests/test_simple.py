@@ -193,7 +193,9 @@ def test_gradients_match_finite_differences(default_world):
                 lambda x: jnp.asarray(x, jnp.float64) if isinstance(x, jax.Array) else x, model
             )
             # check_grads probes with NumPy arrays; the model takes JAX arrays.
-            loss = lambda x, model=model: ccjax.metrics.angular_error(model(jnp.asarray(x), mask).illuminant, truth)
+            loss = jax.jit(
+                lambda x, model=model: ccjax.metrics.angular_error(model(jnp.asarray(x), mask).illuminant, truth)
+            )
             check_grads(loss, (rgb,), order=1, modes=["rev"], atol=1e-4, rtol=1e-4)
             assert float(jnp.linalg.norm(jax.grad(loss)(rgb))) > 0
 

@@ -313,9 +313,18 @@ def test_tiled_grey_edge_equals_the_whole_image(monkeypatch):
     pixels = rng.uniform(0.0, 1.0, (97, 61, 3)).astype(np.float32)
     pixels[:, 30:] *= np.array([1.0, 0.7, 0.4], np.float32)  # an edge with colour
     image, mask = jnp.asarray(pixels), jnp.asarray(rng.uniform(size=(97, 61)) > 0.02)
-    for order, sigma, p in ((1, 2.0, 6.0), (2, 1.0, 2.0), (0, 0.0, 1.0), (1, 0.0, np.inf), (0, 1.0, 8.0)):
+    # Each setting against two tilings; across the settings every tiling is tried twice: one row
+    # a tile, a height that does not divide the image's, a few tiles, exactly one, one past it.
+    tilings = (
+        ((1, 2.0, 6.0), (1, 200)),
+        ((2, 1.0, 2.0), (5, 97)),
+        ((0, 0.0, 1.0), (40, 1)),
+        ((1, 0.0, np.inf), (97, 5)),
+        ((0, 1.0, 8.0), (200, 40)),
+    )
+    for (order, sigma, p), rows_tried in tilings:
         whole = spatial.edge_norms(image, mask, order, sigma, p)
-        for rows in (1, 5, 40, 97, 200):
+        for rows in rows_tried:
             tiled = spatial.edge_norms(image, mask, order, sigma, p, rows=rows)
             np.testing.assert_allclose(tiled[0], whole[0], rtol=2e-6, err_msg=str((order, sigma, p, rows)))
             assert bool(tiled[1]) == bool(whole[1]) and float(tiled[2]) == float(whole[2])

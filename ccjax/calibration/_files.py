@@ -62,8 +62,9 @@ def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -
 
     Raises:
         CalibrationFileError: wrong column count, a value that is not a number, non-finite or
-            negative (naming line and column), a header that does not match the grid, or fewer
-            than ``min_rows`` measurements.
+            negative (naming line and column), a header that does not match the grid, a line
+            that is not readable as CSV (a field past ``csv.field_size_limit``), bytes that are not
+            text, or fewer than ``min_rows`` measurements.
         FileNotFoundError: the file does not exist.
 
     Arguments:
@@ -78,38 +79,54 @@ def read_calibration_csv(path: str | os.PathLike, *, min_rows: int = MIN_ROWS) -
     lines: list[int] = []
     limits.check_csv(path)
     with open(path, newline="") as f:
-        for line_number, fields in enumerate(csv.reader(f), start=1):
-            limits.check_csv(path, line_number)
-            if not fields or not "".join(fields).strip() or fields[0].lstrip().startswith("#"):
-                continue
-            fields = [field.strip() for field in fields]
-            if not rows and not lines and _is_header(fields):
-                _check_header(path, line_number, fields)
-                continue
-            if len(fields) != len(COLUMNS):
-                raise CalibrationFileError(
-                    f"{path}: line {line_number}: expected {len(COLUMNS)} columns (101 spectrum samples at "
-                    f"380..780 nm in 4 nm steps, then R,G,B), found {len(fields)}"
-                )
-            values = []
-            for column, text in enumerate(fields):
-                try:
-                    value = float(text)
-                except ValueError:
+        reader = csv.reader(f)
+        try:
+            for line_number, fields in enumerate(reader, start=1):
+                limits.check_csv(path, line_number)
+                if not fields or not "".join(fields).strip() or fields[0].lstrip().startswith("#"):
+                    continue
+                fields = [field.strip() for field in fields]
+                if not rows and not lines and _is_header(fields):
+                    _check_header(path, line_number, fields)
+                    continue
+                if len(fields) != len(COLUMNS):
                     raise CalibrationFileError(
-                        f"{path}: line {line_number}, column {_column_name(column)}: not a number: {text!r}"
-                    ) from None
-                if not np.isfinite(value):
-                    raise CalibrationFileError(
-                        f"{path}: line {line_number}, column {_column_name(column)}: not a finite number: {text!r}"
+                        f"{path}: line {line_number}: expected {len(COLUMNS)} columns (101 spectrum samples at "
+                        f"380..780 nm in 4 nm steps, then R,G,B), found {len(fields)}"
                     )
-                if value < 0:
-                    raise CalibrationFileError(
-                        f"{path}: line {line_number}, column {_column_name(column)}: negative value {value:g}"
-                    )
-                values.append(value)
-            rows.append(values)
-            lines.append(line_number)
+                values = []
+                for column, text in enumerate(fields):
+                    try:
+                        value = float(text)
+                    except ValueError:
+                        raise CalibrationFileError(
+                            f"{path}: line {line_number}, column {_column_name(column)}: not a number: {text!r}"
+                        ) from None
+                    if not np.isfinite(value):
+                        raise CalibrationFileError(
+                            f"{path}: line {line_number}, column {_column_name(column)}: not a finite number: {text!r}"
+                        )
+                    if value < 0:
+                        raise CalibrationFileError(
+                            f"{path}: line {line_number}, column {_column_name(column)}: negative value {value:g}"
+                        )
+                    values.append(value)
+                rows.append(values)
+                lines.append(line_number)
+        except csv.Error as error:
+            # A field past Python's csv.field_size_limit or a stray quote: one line naming the file
+            # and the line (the reader's line_num is the line it stopped at).
+            reason = str(error)
+            if "field limit" in reason:
+                reason = f"a field is longer than {csv.field_size_limit():,} characters"
+            raise CalibrationFileError(
+                f"{path}: line {max(reader.line_num, 1)}: not readable as CSV ({reason})"
+            ) from None
+        except UnicodeDecodeError as error:
+            raise CalibrationFileError(
+                # Text is decoded in blocks of many lines: the bad byte's line is not known here.
+                f"{path}: not text in the locale's encoding ({error.reason})"
+            ) from None
     if len(rows) < min_rows:
         raise CalibrationFileError(
             f"{path}: {len(rows)} measurement rows; at least {min_rows} are needed to fit sensors"

@@ -82,6 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     for group in groups():
         for add in group.COMMANDS:
             add(sub)
+    parser.commands = dict(sub.choices)  # each command's usage line, for an OptionError
     return parser
 
 
@@ -311,7 +312,9 @@ def _stop_on_interrupt(command: str | None, whole_process: bool, terminated: boo
 def main(argv: list[str] | None = None) -> int:
     """Run ``ccjax`` with ``argv`` (default: the process arguments).
 
-    Errors in arguments, files and folders (``ValueError``, ``OSError``) print one line and give 2;
+    Errors in arguments, files and folders (``ValueError``, ``OSError``) print one line and give 2,
+    an option's value or a contradiction of options found after parsing
+    (:class:`ccjax.cli.option_checks.OptionError`) with the command's usage line before it, as argparse's own;
     any other error (a bug) prints one line naming its type and place in ccjax and gives 1
     (``CCJAX_TRACEBACK=1``: the traceback instead);
     Ctrl-C at any time, also while JAX is being imported (``import ccjax`` defers it to first use),
@@ -324,6 +327,7 @@ def main(argv: list[str] | None = None) -> int:
         The exit code.
     """
     command = None
+    parser = None
     if argv is None and threading.current_thread() is threading.main_thread():
         # SIGTERM stops the command as Ctrl-C does, through the same clean-up (no temporaries
         # left, no output pair half replaced), with one line and 143.
@@ -333,7 +337,8 @@ def main(argv: list[str] | None = None) -> int:
     previous_hook, sys.unraisablehook = sys.unraisablehook, redeliver_interrupts
     previous_format = warnings.formatwarning
     try:
-        args = build_parser().parse_args(argv)
+        parser = build_parser()
+        args = parser.parse_args(argv)
         command = args.command
         warnings.formatwarning = one_line_warnings(command, previous_format)
         import_holding_interrupts("numpy", "jax")  # every command needs them
@@ -353,6 +358,12 @@ def main(argv: list[str] | None = None) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 1
         if isinstance(error, (ValueError, OSError)):
+            from ccjax.cli.option_checks import OptionError
+
+            if isinstance(error, OptionError) and parser is not None:
+                # As argparse reports the errors it finds: the command's usage line first.
+                commands = getattr(parser, "commands", {})
+                sys.stderr.write(commands.get(command, parser).format_usage())
             print(f"{prefix(command)}: error: {error}", file=sys.stderr)
             return 2
         if isinstance(error, Exception) and not os.environ.get(TRACEBACK_VARIABLE):

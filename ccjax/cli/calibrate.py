@@ -17,6 +17,7 @@ from ccjax.cli.common import (
     write,
     write_plot,
 )
+from ccjax.cli.option_checks import data_folder
 
 
 def add_calibrate(sub) -> None:
@@ -45,6 +46,7 @@ def add_calibrate(sub) -> None:
     )
     p.add_argument(
         "--data-dir",
+        type=data_folder,
         default=None,
         help="external data directory (else $CCJAX_DATA, else ../shared/data)",
     )

@@ -10,6 +10,8 @@ from pathlib import Path
 
 from ccjax import limits
 from ccjax._numbers import decimal, whole
+from ccjax.cli.number_lists import number_list
+from ccjax.cli.option_checks import OptionError, data_folder
 
 
 def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -> None:
@@ -27,6 +29,7 @@ def world_arguments(parser: argparse.ArgumentParser, default: str = "default") -
     )
     parser.add_argument(
         "--data-dir",
+        type=data_folder,
         default=None,
         help="external data directory (else $CCJAX_DATA, else ../shared/data)",
     )
@@ -54,23 +57,26 @@ def pretrain_arguments(parser: argparse.ArgumentParser) -> None:
 
 def pretraining_setting(args):
     """The :class:`ccjax.training.Pretraining` of ``--pretrain-camera`` and
-    ``--pretrain-images``, or None without them; refuses ``--pretrain-images`` alone."""
+    ``--pretrain-images``, or None without them; refuses ``--pretrain-images`` alone and an
+    unknown camera."""
     if args.pretrain_camera is None:
         if args.pretrain_images is not None:
-            raise SystemExit("--pretrain-images: applies with --pretrain-camera only")
+            raise OptionError("--pretrain-images: applies with --pretrain-camera only")
         return None
     from ccjax.training import Pretraining
 
+    # An unknown camera is named by its option before any work (the renderer would say "camera:").
+    check_camera(args.pretrain_camera, getattr(args, "data_dir", None), option="--pretrain-camera")
     try:
         images = {} if args.pretrain_images is None else {"images": args.pretrain_images}
         return Pretraining(args.pretrain_camera, **images)
     except ValueError as error:
-        raise SystemExit(f"--pretrain-{error}") from None
+        raise OptionError(f"--pretrain-{error}") from None
 
 
 def check_camera_option(args) -> None:
     if args.world == "barnard1999" and args.camera:
-        raise SystemExit("--camera applies to --world default only (barnard1999 is the Sony DXC-930 world)")
+        raise OptionError("--camera: applies to --world default only (barnard1999 is the Sony DXC-930 world)")
 
 
 def check_camera_name(args) -> None:
@@ -111,7 +117,7 @@ def check_camera(name: str | None, data_dir=None, option: str = "--camera") -> N
     known = cameras(data_dir)
     if name not in known:
         close = difflib.get_close_matches(name, list(known), n=3, cutoff=0.6)
-        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ";"
         raise ValueError(
             f"{option}: unknown camera {name!r}{hint} `ccjax cameras` lists the {len(known)} names "
             "('Sony DXC-930' and 'Jiang: <model>' need the external data, --data-dir)"
@@ -126,15 +132,8 @@ def build_world(args):
     return store.world(args.world, args.camera, seed=args.seed, data_dir=args.data_dir)
 
 
-def int_list(text: str) -> list[int]:
-    """``"4,8,16"`` -> ``[4, 8, 16]`` (an argparse type)."""
-    try:
-        values = [whole(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
-    if not values:
-        raise argparse.ArgumentTypeError("empty list")
-    return values
+int_list = number_list(whole, "comma-separated integers")
+"""The argparse type of a list of integers: ``"4,8,16"`` -> ``(4, 8, 16)``."""
 
 
 def label_list(text: str) -> list[str]:
@@ -391,15 +390,20 @@ class CommandParser(argparse.ArgumentParser):
 
     Attributes:
         data_options: the data options of this parser and their suffixes.
+        commands: the sub-commands' parsers by name (for their usage lines, :class:`OptionError`).
     """
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.data_options: dict[str, str] = {}
+        # The sub-commands' parsers by name (filled by ccjax.cli.build_parser): their usage lines
+        # go before an OptionError found after parsing.
+        self.commands: dict[str, argparse.ArgumentParser] = {}
 
     def parse_known_args(self, args=None, namespace=None):  # pyright: ignore[reportIncompatibleMethodOverride]
         """``argparse.ArgumentParser.parse_known_args``, with each data option followed by a word
-        that is not its PATH given ``-`` explicitly (``--json=-``), so the word stays positional.
+        that is not its PATH given ``-`` explicitly (``--json=-``), so the word stays positional,
+        and a word holding a NUL byte refused (exit 2, the usage line).
 
         Arguments:
             args: the arguments (default: the process arguments).
@@ -409,6 +413,11 @@ class CommandParser(argparse.ArgumentParser):
             ``(namespace, the arguments not recognised)``.
         """
         words = list(sys.argv[1:] if args is None else args)
+        if not self.commands:  # a sub-command's parser: its usage line and prefix name the command
+            # Only in-process calls can pass a NUL byte (process arguments are C strings); a path
+            # holding one would fail later as "embedded null byte", naming no argument.
+            for word in (word for word in words if "\0" in word):
+                self.error(f"{word!r} contains a NUL byte, which no file name or value may hold")
         kept: dict[str, str] = {}  # word -> the option it followed
         for index, word in enumerate(words[:-1]):
             if word == "--":

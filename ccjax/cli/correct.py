@@ -5,6 +5,7 @@ from __future__ import annotations
 from ccjax._numbers import decimal, whole
 from ccjax.cli import image_options
 from ccjax.cli.common import check_outputs, overwrite_argument, world_arguments
+from ccjax.cli.number_lists import number_list
 
 OUTPUT_SUFFIXES = (".png", ".tif", ".tiff")
 JPEG_SUFFIXES = (".jpg", ".jpeg")
@@ -148,56 +149,23 @@ SHARPENING_BYTES = 1 << 16
 """Largest ``--sharpening`` file read (a 3x3 matrix is a few hundred bytes as text or .npy)."""
 
 
-def light_values(text: str) -> tuple[float, float, float]:
-    """``--light R,G,B``: three non-negative decimal numbers, not all zero.
-
-    Arguments:
-        text: the option's value.
-
-    Returns:
-        The three numbers.
-
-    Raises:
-        argparse.ArgumentTypeError: any other text.
-    """
-    import argparse
-
-    parts = text.split(",")
-    try:
-        values = tuple(decimal(part) for part in parts)
-    except ValueError:
-        values = ()
-    if len(values) != 3:
-        raise argparse.ArgumentTypeError(f"expected three numbers R,G,B, got {text!r}")
-    if min(values) < 0 or max(values) <= 0:
-        raise argparse.ArgumentTypeError(f"expected non-negative numbers, not all zero, got {text!r}")
-    return values[0], values[1], values[2]
+def _light_fault(rgb: tuple[float, ...]) -> str | None:
+    """What a ``--light`` with a negative or no positive number should be (None: in range)."""
+    return "non-negative numbers, not all zero" if min(rgb) < 0 or max(rgb) <= 0 else None
 
 
-def region_values(text: str) -> tuple[int, int, int, int]:
-    """``--white-region X,Y,W,H``: four integers, X,Y >= 0 and W,H >= 1.
+def _region_fault(xywh: tuple[int, ...]) -> str | None:
+    """What a ``--white-region`` with a negative corner or an empty size should be (None: in range)."""
+    if min(xywh) < 0:
+        return "four whole numbers X,Y,W,H"
+    return "a width and height of at least 1 pixel" if min(xywh[2:]) < 1 else None
 
-    Arguments:
-        text: the option's value.
 
-    Returns:
-        The four integers.
+light_values = number_list(decimal, "three numbers R,G,B", 3, check=_light_fault)
+"""The argparse type of ``--light R,G,B``: three non-negative decimal numbers, not all zero."""
 
-    Raises:
-        argparse.ArgumentTypeError: any other text.
-    """
-    import argparse
-
-    try:
-        values = tuple(whole(part) for part in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 4 or min(values) < 0:
-        raise argparse.ArgumentTypeError(f"expected four whole numbers X,Y,W,H, got {text!r}")
-    x, y, width, height = values
-    if width < 1 or height < 1:
-        raise argparse.ArgumentTypeError(f"expected a width and height of at least 1 pixel, got {text!r}")
-    return x, y, width, height
+region_values = number_list(whole, "four whole numbers X,Y,W,H", 4, check=_region_fault)
+"""The argparse type of ``--white-region X,Y,W,H``: four integers, X,Y >= 0 and W,H >= 1."""
 
 
 def read_sharpening(path):
@@ -212,8 +180,9 @@ def read_sharpening(path):
         ``(3, 3)`` float64, or None.
 
     Raises:
-        ValueError: not a small regular file, not a text or ``.npy`` matrix, or not an
-            invertible, finite 3x3 matrix.
+        ValueError: not a small regular file, not a text or ``.npy`` matrix, a ``.npy`` array
+            of numbers that are not real (complex, say; its dtype is named), or not an invertible,
+            finite 3x3 matrix.
     """
     import io
     import os
@@ -235,8 +204,14 @@ def read_sharpening(path):
                 raise ValueError("not a single .npy array (an .npz archive?)")
         else:
             sharpening = np.loadtxt(io.StringIO(blob.decode("utf-8")), ndmin=2)
-        sharpening = np.asarray(sharpening, np.float64)
     except (ValueError, TypeError, OSError, EOFError) as error:
+        raise ValueError(f"--sharpening: cannot read {path}: {error}") from None
+    if sharpening.dtype.kind not in "iuf":
+        # A complex matrix would lose its imaginary part in the cast to float (NumPy only warns).
+        raise ValueError(f"--sharpening: {path} holds {sharpening.dtype} values; expected real numbers")
+    try:
+        sharpening = np.asarray(sharpening, np.float64)
+    except (ValueError, TypeError) as error:
         raise ValueError(f"--sharpening: cannot read {path}: {error}") from None
     if sharpening.shape != (3, 3) or not np.all(np.isfinite(sharpening)) or abs(np.linalg.det(sharpening)) < 1e-9:
         raise ValueError(f"--sharpening: {path} must hold an invertible 3x3 matrix")

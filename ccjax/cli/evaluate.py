@@ -29,6 +29,7 @@ from ccjax.cli.common import (
     write,
     write_plot,
 )
+from ccjax.cli.option_checks import OptionError
 
 
 def add_evaluate(sub) -> None:
@@ -354,9 +355,9 @@ def run_evaluate(args) -> int:
     table_stream(args)  # --json - and --csv - at once: refused before any work
     pretraining = pretraining_setting(args)
     if pretraining is not None and args.train is None:
-        raise SystemExit("--pretrain-camera: applies to --train (the labels trained within the folds)")
+        raise OptionError("--pretrain-camera: applies to --train (the labels trained within the folds)")
     if pretraining is not None and len(args.directories) > 1:
-        raise SystemExit("--pretrain-camera: applies to one folder (its camera's curves render the images)")
+        raise OptionError("--pretrain-camera: applies to one folder (its camera's curves render the images)")
     check_camera_option(args)
     several = len(args.directories) > 1
     # One folder, or no folder with a camera: world-based methods would run on curves the images

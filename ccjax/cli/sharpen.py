@@ -156,7 +156,7 @@ def run_sharpen(args) -> int:
     else:
         n_lights = int(world.test_illuminants.shape[0])
         if not 0 <= args.light < n_lights:
-            raise ValueError(f"light: expected an index in [0, {n_lights}), got {args.light}")
+            raise ValueError(f"--light: expected a test-illuminant index in [0, {n_lights}), got {args.light}")
         transform = sharpening.optimal_sharpening(world, world.test_illuminants[args.light : args.light + 1])[0]
     info["T"] = np.asarray(transform).tolist()
     info.update(chapter5_report.summary(world, transform))

@@ -22,6 +22,7 @@ from ccjax.cli.common import (
     world_arguments,
 )
 from ccjax.cli.image_options import file_arguments, read_options
+from ccjax.cli.option_checks import OptionError
 
 NETS = ("NEURAL-NET", "SP-NEURAL-NET")
 
@@ -185,14 +186,14 @@ def run_train(args) -> int:
     args.directory = args.directory[0] if args.directory else None
     if args.directory is None:
         if args.method not in NETS and not args.specular:
-            raise SystemExit(
+            raise OptionError(
                 f"train: give an image folder to train {args.method} (only {', '.join(NETS)} train without one)"
             )
         args.specular = args.specular or args.method == "SP-NEURAL-NET"
         return run_train_net(args)
     if args.world != "default":
-        raise SystemExit(
-            "train: --world applies to the nets' synthetic training; images train from --camera's default world"
+        raise OptionError(
+            "--world: applies to the nets' synthetic training; images train from --camera's default world"
         )
     if args.steps is not None:
         raise ValueError("--steps: applies to the nets' synthetic training (no DIR); with a folder, give --epochs")

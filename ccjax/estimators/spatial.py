@@ -122,21 +122,52 @@ def _safe_sqrt(x):
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
 
 
-def _planar_response(planes: Float[Array, "3 H W"], order: int, sigma: float) -> Float[Array, "3 H W"]:
+def _planar_response(
+    image: Float[Array, "H W 3"], order: int, sigma: float
+) -> tuple[Float[Array, "3 H W"], Float[Array, ""]]:
+    """``d_c`` of the module docstring, channel first, divided by a power of two ``up``.
+
+    A derivative's square overflows float32 above about 1.8e19 (an image scaled by 1e20 had
+    infinite edges and fell back) and underflows below about 1e-19 (no edges at all). The filters
+    are linear, so the image is divided by the power of two ``up`` that brings its largest value
+    near 1 (exact; inside the padding pass, which reads the image anyway), and the caller
+    multiplies its few results by ``up`` (multiplying the response itself cost 30% of the
+    estimate: XLA then computed the root once for each of its consumers).
+
+    Arguments:
+        image: ``(H, W, 3)``.
+        order, sigma: the derivative order and scale.
+
+    Returns:
+        ``(response / up, up)``; ``up`` is 1 for ``order = 0`` (no square).
+    """
     if order == 0:
-        return _derivative(planes, sigma, 0, 0)
+        return _derivative(jnp.moveaxis(image, -1, 0), sigma, 0, 0), jnp.ones((), image.dtype)
+    down, up = _power_of_two_scale(jnp.max(jnp.abs(image)))
+    planes = jnp.moveaxis(image * down, -1, 0)
     if order == 1:
         dx, dy = jax.lax.optimization_barrier((_derivative(planes, sigma, 0, 1), _derivative(planes, sigma, 1, 0)))
-        return _safe_sqrt(dx**2 + dy**2)
+        return _safe_sqrt(dx**2 + dy**2), up
     xx, yy, xy = jax.lax.optimization_barrier(
         (_derivative(planes, sigma, 0, 2), _derivative(planes, sigma, 2, 0), _derivative(planes, sigma, 1, 1))
     )
-    return _safe_sqrt(xx**2 + 4.0 * xy**2 + yy**2)
+    return _safe_sqrt(xx**2 + 4.0 * xy**2 + yy**2), up
+
+
+def _power_of_two_scale(largest: Float[Array, ""]) -> tuple[Float[Array, ""], Float[Array, ""]]:
+    """``(2^-e, 2^e)`` with ``2^e`` the power of two at or just above ``largest`` (held out of the
+    gradient), ``e`` kept within ``[-126, 126]`` so that both are normal floats (a subnormal
+    factor is flushed to zero on devices): values up to float32's largest come out below 4."""
+    _, exponent = jnp.frexp(jax.lax.stop_gradient(largest))
+    exponent = jnp.clip(exponent, -126, 126)
+    one = jnp.ones((), largest.dtype)
+    return jnp.ldexp(one, -exponent), jnp.ldexp(one, exponent)
 
 
 def edge_response(image: Float[Array, "H W 3"], order: int, sigma: float) -> Float[Array, "H W 3"]:
     """``d_c`` of the module docstring: smoothed image (n = 0) or derivative magnitude (n = 1, 2)."""
-    return jnp.moveaxis(_planar_response(jnp.moveaxis(image, -1, 0), order, sigma), 0, -1)
+    response, up = _planar_response(image, order, sigma)
+    return jnp.moveaxis(response * up, 0, -1)
 
 
 def valid_positions(mask: Bool[Array, "H W"], radius: int) -> Bool[Array, "H W"]:
@@ -190,11 +221,14 @@ def edge_norms(
 
     def parts(tile, usable, own, margin=halo):
         # The tile's own rows lie ``margin`` rows inside it; the rest is the filters' support.
-        response = _planar_response(jnp.moveaxis(tile, -1, 0), order, sigma)[:, margin : margin + own.size]
+        response, up = _planar_response(tile, order, sigma)
+        response = response[:, margin : margin + own.size]
         valid = valid_positions(usable, radius)[margin : margin + own.size] & own[:, None]
         own_pixels = usable[margin : margin + own.size] & own[:, None]
         brightest = jnp.max(jnp.abs(jnp.where(own_pixels[..., None], tile[margin : margin + own.size], 0.0)))
-        return *minkowski_parts(response, valid, p), brightest
+        maximum, scale, total, count = minkowski_parts(response, valid, p)
+        # The sums are of (response / scale)^p, the same for the response divided by up.
+        return maximum * up, scale * up, total, count, brightest
 
     if rows is None:
         maximum, scale, total, count, brightest = parts(image, mask, jnp.ones(image.shape[0], bool), margin=0)

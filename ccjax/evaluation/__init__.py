@@ -10,6 +10,8 @@ A protocol is a value (:mod:`ccjax.evaluation.photo_protocols`), read and traini
     result = evaluation.evaluate(folders, ["shades-of-grey-p6"], evaluation.LeaveOneCameraOut(("FFCC",)))
     print(result.table())
 
+* :class:`AbstractProtocol` -- a protocol's hooks: its rounds (:class:`Round`) and each scored
+  folder's models from the round's :class:`RoundInputs`;
 * :class:`FittedToWorld`, :class:`KFolds`, :class:`TrainedInFolds` -- each folder on its own;
 * :class:`LeaveOneCameraOut`, :class:`TrainOn` -- trained on other cameras' folders mapped into
   the scored folder's camera (:mod:`ccjax.evaluation.cross_camera`);
@@ -45,6 +47,7 @@ from ccjax.evaluation.photo_protocols import (
     FittedToWorld,
     KFolds,
     Round,
+    RoundInputs,
     TrainedInFolds,
     protocol_for,
 )
@@ -78,6 +81,7 @@ __all__ = [
     "LeaveOneCameraOut",
     "ReadOptions",
     "Round",
+    "RoundInputs",
     "SetResult",
     "SetsEvaluation",
     "TrainOn",

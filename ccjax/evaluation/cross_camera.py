@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from ccjax.evaluation.any_camera import ANY_CAMERA, kept_out, train_any_camera
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
-from ccjax.evaluation.photo_protocols import AbstractProtocol, Round
+from ccjax.evaluation.photo_protocols import AbstractProtocol, Round, RoundInputs
 from ccjax.evaluation.scored_folder import TRAINED_SUFFIX, FolderData, FolderModels
 from ccjax.evaluation.sets import FolderSet
 from ccjax.world import World
@@ -116,34 +117,23 @@ class LeaveOneCameraOut(AbstractProtocol):
             rounds.append(Round(index, training))
         return rounds
 
-    def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
-        pooled = [label for label in trained if label != ANY_CAMERA]
+    def models(self, inputs, *, progress, log) -> FolderModels:
+        pooled = [label for label in inputs.trained if label != ANY_CAMERA]
         if not pooled:
             from ccjax.runs import store
 
-            models = FolderModels({label: [store.fit(label, world)] for label in methods}, training_notes=[])
-        else:
-            models = train_on_pool(
-                data,
-                training,
-                methods,
-                pooled,
-                world,
-                read,
-                options,
-                self.camera_map,
-                self.rendered,
-                progress,
-                log,
-                adapt=self.adapt,
-            )
-        if ANY_CAMERA not in trained:
+            fitted = {label: [store.fit(label, inputs.world)] for label in inputs.methods}
+            models = FolderModels(fitted, training_notes=[])
+        else:  # the any-camera estimator is not trained on the pool: it is trained below
+            pooled_inputs = replace(inputs, trained=pooled)
+            models = train_on_pool(pooled_inputs, self.camera_map, self.rendered, progress, log, adapt=self.adapt)
+        if ANY_CAMERA not in inputs.trained:
             return models
-        target = str(data.camera)
+        target, training = str(inputs.data.camera), inputs.training
         model, _, facts = train_any_camera(
-            training, read, options, exclude=(target,), copies=self.copies, progress=progress, log=log
+            training, inputs.read, inputs.options, exclude=(target,), copies=self.copies, progress=progress, log=log
         )
-        models.models[ANY_CAMERA + TRAINED_SUFFIX] = [model.bind(world.camera)]
+        models.models[ANY_CAMERA + TRAINED_SUFFIX] = [model.bind(inputs.world.camera)]
         notes = list(models.training_notes or [])
         notes.append(
             f"{ANY_CAMERA} trained on {facts['images']} images of {', '.join(f.label for f in training)} "
@@ -191,10 +181,8 @@ class TrainOn(AbstractProtocol):
             raise ValueError("training: every folder with a camera is a training folder; none is left to score")
         return [Round(index, self.training) for index in scored]
 
-    def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
-        return train_on_pool(
-            data, training, methods, trained, world, read, options, self.camera_map, self.rendered, progress, log
-        )
+    def models(self, inputs, *, progress, log) -> FolderModels:
+        return train_on_pool(inputs, self.camera_map, self.rendered, progress, log)
 
 
 def pooled_source(training: Sequence[FolderData], target: str, camera_map: str, *, seed: int = 0):
@@ -231,13 +219,7 @@ def pooled_source(training: Sequence[FolderData], target: str, camera_map: str, 
 
 
 def train_on_pool(
-    data: FolderData,
-    training: Sequence[FolderData],
-    methods: Sequence[str],
-    trained: Sequence[str],
-    world: World,
-    read: ReadOptions,
-    options: TrainingOptions,
+    inputs: RoundInputs,
     camera_map: str,
     rendered: int,
     progress: bool,
@@ -245,13 +227,12 @@ def train_on_pool(
     *,
     adapt: bool = False,
 ) -> FolderModels:
-    """The scored folder's models: ``methods`` fitted to its world, ``trained`` trained on the
-    training folders mapped into its camera (and ``rendered`` images of its camera).
+    """The scored folder's models: ``inputs.methods`` fitted to its world, ``inputs.trained``
+    trained on the training folders mapped into its camera (and ``rendered`` images of its camera).
 
     Arguments:
-        data: the scored folder (its camera is the target).
-        training: the training folders.
-        methods, trained, world, read, options: as :meth:`AbstractProtocol.models`.
+        inputs: the round (:class:`~ccjax.evaluation.photo_protocols.RoundInputs`); the scored
+            folder's camera is the target.
         camera_map: the map's kind.
         rendered: images rendered through the target's curves pooled in.
         progress: progress bars.
@@ -264,17 +245,18 @@ def train_on_pool(
     """
     from ccjax.runs import store
 
+    data, training, world, read, options = inputs.data, inputs.training, inputs.world, inputs.read, inputs.options
     target = data.camera
     if target is None:
         raise ValueError(f"folders: {data.label} has no camera; a model mapped into it needs its curves")
     pool = pooled_source(training, target, camera_map, seed=options.seed)
-    models = {label: [store.fit(label, world)] for label in methods}
+    models = {label: [store.fit(label, world)] for label in inputs.methods}
     notes = []
     parts = ", ".join(
         f"{folder.label} ({folder.camera}{'' if folder.camera == target else ', mapped ' + camera_map})"
         for folder in training
     )
-    for label in trained:
+    for label in inputs.trained:
         model, record, images = train_pooled(label, pool, world, read, options, rendered, progress=progress, log=log)
         models[label + TRAINED_SUFFIX] = [model]
         if adapt and label == "FFCC":  # scored beside the model it adapts: the zero-adaptation figure in the same run

@@ -2,7 +2,8 @@
 
 A protocol is a value (an ``eqx.Module`` with static fields) with two hooks: :meth:`AbstractProtocol.rounds`
 says which folder is scored with which folders' labelled images, and :meth:`AbstractProtocol.models`
-gives a scored folder its models (per fold) and their training record. The runner
+gives a scored folder its models (per fold) and their training record from the round's
+:class:`RoundInputs`. The runner
 (:func:`ccjax.evaluation.evaluate`) calls the hooks and nothing else, so a new protocol is one new
 value:
 
@@ -35,6 +36,7 @@ __all__ = [
     "FittedToWorld",
     "KFolds",
     "Round",
+    "RoundInputs",
     "TrainedInFolds",
     "check_fold_options",
     "protocol_for",
@@ -58,6 +60,30 @@ class Round:
 
     scored: int
     training: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class RoundInputs:
+    """What a protocol's :meth:`AbstractProtocol.models` is given for one round.
+
+    Attributes:
+        data: the scored folder.
+        training: the round's training folders (:attr:`Round.training`, read).
+        methods: the labels fitted to ``world`` (not trained).
+        trained: the labels to train (:meth:`AbstractProtocol.trained_labels`, less those the
+            folder cannot run: world-based ones without a camera).
+        world: the scored folder's world (its camera's curves).
+        read: the preparation of every input.
+        options: seed, epochs, pretraining.
+    """
+
+    data: FolderData
+    training: Sequence[FolderData]
+    methods: Sequence[str]
+    trained: Sequence[str]
+    world: World
+    read: ReadOptions
+    options: TrainingOptions
 
 
 class AbstractProtocol(eqx.Module):
@@ -92,30 +118,11 @@ class AbstractProtocol(eqx.Module):
         """
 
     @abc.abstractmethod
-    def models(
-        self,
-        data: FolderData,
-        training: Sequence[FolderData],
-        methods: Sequence[str],
-        trained: Sequence[str],
-        world: World,
-        read: ReadOptions,
-        options: TrainingOptions,
-        *,
-        progress: bool,
-        log: Callable[[str], None] | None,
-    ) -> FolderModels:
+    def models(self, inputs: RoundInputs, *, progress: bool, log: Callable[[str], None] | None) -> FolderModels:
         """The scored folder's models (per fold) and their training record.
 
         Arguments:
-            data: the scored folder.
-            training: the round's training folders.
-            methods: the labels fitted to ``world`` (not trained).
-            trained: the labels to train (:meth:`trained_labels`, less those the folder cannot
-                run: world-based ones without a camera).
-            world: the scored folder's world (its camera's curves).
-            read: the preparation of every input.
-            options: seed, epochs, pretraining.
+            inputs: the round's scored folder, training folders, labels, world and options.
             progress: progress bars.
             log: a line per training step.
 
@@ -140,8 +147,8 @@ class FittedToWorld(AbstractProtocol):
     def rounds(self, cameras, log) -> list[Round]:
         return [Round(index) for index in range(len(cameras))]
 
-    def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
-        return FolderModels(_fitted(methods, world))
+    def models(self, inputs, *, progress, log) -> FolderModels:
+        return FolderModels(_fitted(inputs.methods, inputs.world))
 
 
 class KFolds(AbstractProtocol):
@@ -167,9 +174,10 @@ class KFolds(AbstractProtocol):
     def rounds(self, cameras, log) -> list[Round]:
         return [Round(index) for index in range(len(cameras))]
 
-    def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
+    def models(self, inputs, *, progress, log) -> FolderModels:
         from ccjax import training as learning
 
+        data = inputs.data
         given = None
         if data.given_folds is not None:
             try:
@@ -177,10 +185,10 @@ class KFolds(AbstractProtocol):
             except ValueError as error:
                 raise ValueError(f"folds: {error}") from None
             given = np.array([assigned[name] for name in data.path_names])
-        fold_of, worlds = fold_worlds(world, data.truth, self.folds, given)
+        fold_of, worlds = fold_worlds(inputs.world, data.truth, self.folds, given)
         _enough_images(data, self.folds)
         source = "the ground truth's fold column" if given is not None else "image i in fold i mod K"
-        models = {method: [method_model(method, w) for w in worlds] for method in methods}
+        models = {method: [method_model(method, w) for w in worlds] for method in inputs.methods}
         return FolderModels(models, fold_of=fold_of, folds=self.folds, fold_source=source)
 
 
@@ -211,17 +219,18 @@ class TrainedInFolds(AbstractProtocol):
     def rounds(self, cameras, log) -> list[Round]:
         return [Round(index, (index,)) for index in range(len(cameras))]
 
-    def models(self, data, training, methods, trained, world, read, options, *, progress, log) -> FolderModels:
+    def models(self, inputs, *, progress, log) -> FolderModels:
         from ccjax import training as learning
 
+        data, read, options = inputs.data, inputs.read, inputs.options
         try:
             folds = learning.assign_folds(data.names, self.folds, seed=options.seed, given=data.given_folds)
         except ValueError as error:
             raise ValueError(f"folds: {error}") from None
         assigned = dict(zip(data.names, folds))
         fold_of = np.array([assigned[name] for name in data.path_names])
-        labels = list(trained)
-        starts = trainable_starts(labels, world)
+        labels = list(inputs.trained)
+        starts = trainable_starts(labels, inputs.world)
         _enough_images(data, self.folds)
         schedules = {
             label: learning.default_schedule(start, **options.schedule_changes()) for label, start in starts.items()
@@ -242,7 +251,7 @@ class TrainedInFolds(AbstractProtocol):
             pretraining=options.pretraining,
         )
         source = "the ground truth's fold column" if data.given_folds else f"seed {options.seed}"
-        models = _fitted(methods, world, self.folds) | trained
+        models = _fitted(inputs.methods, inputs.world, self.folds) | trained
         return FolderModels(
             models,
             fold_of=fold_of,

@@ -19,7 +19,7 @@ import numpy as np
 
 from ccjax.evaluation.methods import check_methods
 from ccjax.evaluation.options import ReadOptions, TrainingOptions
-from ccjax.evaluation.photo_protocols import AbstractProtocol
+from ccjax.evaluation.photo_protocols import AbstractProtocol, RoundInputs
 from ccjax.evaluation.scored_folder import (
     TRAINED_SUFFIX,
     FolderData,
@@ -357,7 +357,8 @@ def evaluate_data(
     read, options = read or ReadOptions(), options or TrainingOptions()
     trained = list(protocol.trained_labels() if trained is None else trained)
     check = camera_check(data, world, [*methods, *trained], asked=check_camera, log=log)
-    given = protocol.models(data, training, methods, trained, world, read, options, progress=progress, log=log)
+    inputs = RoundInputs(data, training, methods, trained, world, read, options)
+    given = protocol.models(inputs, progress=progress, log=log)
     return score_folder(data, given, world, read, check=check, progress=progress)
 
 

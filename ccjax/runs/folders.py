@@ -8,9 +8,10 @@ Files that cannot be used do not stop the run: each has its failure record in th
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -189,9 +190,10 @@ def correct_folder(
 
     Every file is written atomically (a temporary name put in place,
     :func:`ccjax.io.outputs.put_in_place`); existing files are replaced unless ``overwrite`` is
-    False (then a file found at an output's name is kept and that image fails with
-    ``FileExistsError``), so a caller that must not replace them checks first
-    (:func:`ccjax.io.outputs.check_outputs`) and passes False.
+    False (then a file found at an output's name is kept and that image fails: it is not done and
+    its failure record names the file, and the other images are still corrected), so a caller
+    that must not replace them checks first (:func:`ccjax.io.outputs.check_outputs`) and passes
+    False.
 
     Arguments:
         images: a folder, a file, a list of them, or an :class:`~ccjax.runs.sources.ImageFolder`.
@@ -248,6 +250,7 @@ def correct_folder(
         )
     canonical = world.canonical_white
     matrix = io.preview_matrix_cached(world)
+    appeared: dict[int, str] = {}  # index in the source -> failure record
 
     def write(index: int, image: LinearImage, estimates: dict[str, Estimate]) -> None:
         estimate = estimates[label]
@@ -286,9 +289,42 @@ def correct_folder(
         if preview_file is not None:
             preview = srgb_preview_rows(corrected, image.rgb.shape, colours, size=preview_size)
             files[preview_file] = png_bytes(preview, srgb=True, run=run)
-        atomic_write_files(files, replace=overwrite)
+        try:
+            atomic_write_files(files, replace=overwrite)
+        except FileExistsError as error:
+            if overwrite:
+                raise
+            # Another process wrote one of this image's outputs after the run began: that file is
+            # kept and this image fails, but the others are still corrected.
+            appeared[index] = f"{image.path}: {error.filename} {error.strerror}"
+            return
         del codes
         if each is not None:
             each(index, estimate, written[index], shown[index])
 
-    return run_models(source, {label: [model]}, preprocessing=preprocessing, dark=dark, progress=progress, each=write)
+    run = run_models(source, {label: [model]}, preprocessing=preprocessing, dark=dark, progress=progress, each=write)
+    return with_failures(run, appeared)
+
+
+def with_failures(run: ImageRun, failed: Mapping[int, str]) -> ImageRun:
+    """``run`` with more images failed after their estimate (an output that could not be written):
+    each is marked not done and its failure record joins the others, in item order.
+
+    Arguments:
+        run: the run.
+        failed: ``{index in the source: failure record}`` (items not in the run are ignored).
+
+    Returns:
+        A new :class:`~ccjax.runs.images.ImageRun` (``run`` itself when ``failed`` is empty).
+    """
+    if not failed:
+        return run
+    done = np.array(run.done, copy=True)
+    records = dict(run.failures)
+    for position, index in enumerate(np.asarray(run.items).tolist()):
+        if index in failed:
+            done[position] = False
+            records[run.paths[position]] = failed[index]
+    order = {path: position for position, path in enumerate(run.paths)}
+    failures = dict(sorted(records.items(), key=lambda item: order.get(item[0], len(order))))
+    return dataclasses.replace(run, done=done, failures=failures)
