@@ -33,10 +33,35 @@ PIXELS = Limit(100_000_000, "pixels per image (from the file's header, before de
 
 SCENES = Limit(1_000_000, "scenes of one synthetic run", "--scenes / n_scenes")
 """``compare``'s and ``sharpen``'s scene count: the scenes stream through in chunks, but each
-(method, surface count) keeps eight numbers per scene (32 MB per cell at the limit)."""
+(method, surface count) keeps eight numbers per scene (32 MB per cell at the limit);
+:data:`SCENE_RESULTS` bounds ``compare``'s cells times its scenes."""
+
+SCENE_RESULTS = Limit(
+    50_000_000,
+    "per-scene results held by one comparison (scenes x surface counts x methods)",
+    "--scenes, --surfaces, --methods / n_scenes, n_surfaces, methods",
+)
+"""``compare`` (``ccjax.experiments.sweep``) keeps eight float32 numbers per scene, surface
+count and method to the end of the run. Measured peak (``benchmarks/limits.py``; NOTHING and GW
+at 4 and 8 surfaces): 509 MB at 200,000 scene results and 635 MB at 4,000,000, so 35 bytes each
+and a projected 1.75 GB at the limit (narrower pairs of sizes read 32 to 61 bytes, the peaks
+varying by a few tens of MB between runs). The limit is the default comparison (5 surface
+counts x 10 methods) at :data:`SCENES`' million scenes; ``--surfaces 1..300`` at a million
+scenes (300 counts) is refused."""
 
 SAMPLE_SCENES = Limit(100_000, "scenes held at once by ccjax.sample", "n_scenes (sample in several calls)")
-"""``ccjax.sample`` returns every scene at once (a 64-surface scene holds about 2 KB)."""
+"""``ccjax.sample`` returns every scene at once; :data:`SAMPLE_SURFACES` bounds their surfaces."""
+
+SAMPLE_SURFACES = Limit(
+    6_400_000,
+    "surfaces held at once by ccjax.sample (scenes x surfaces per scene)",
+    "n_scenes, n_surfaces (sample in several calls)",
+)
+"""100,000 scenes of 64 surfaces, or 3,211 of 1,993. Measured peak (``benchmarks/limits.py``):
+34 bytes a surface (2.2 KB a 64-surface scene) without options, 180 to 190 with every option
+(specular, noise, clip, metallic, fluorescent), so a projected peak of 0.6 GB at the limit
+without options and 1.6 GB with every option (the world's tables included; checked at 50,000
+scenes of 64 surfaces with every option: 1.0 GB measured, 1.05 GB projected)."""
 
 SIGMA = Limit(64.0, "grey edge's Gaussian sigma, in pixels", "the method label (e.g. grey-edge-1-6-2)")
 """A Gaussian of sigma ``s`` has ``8 s + 1`` taps; past 64 pixels (a 513-tap kernel) the estimate
@@ -62,8 +87,20 @@ SEED = Limit(2**32 - 1, "seed", "--seed")
 """Seeds are 32-bit: JAX's keys (without x64) take a seed's low 32 bits, so larger seeds would
 give the same scenes as smaller ones."""
 
-OBJECTS = Limit(10_000, "objects of an indexing experiment", "--objects")
-"""200 times the default of 50; the experiment holds every object's histograms at once."""
+OBJECTS = Limit(10_000, "objects of an indexing experiment", "--objects / n_objects")
+"""200 times the default of 50. The images are rendered and scored in blocks of 0.5 MP
+(:data:`ccjax.experiments.indexing.BLOCK_PIXELS`), so what grows with the objects is only what is
+kept: each object's histogram (1 KB), each query's rank and error per method, a block's scores
+against every object (a few KB an object in all). Measured peak (``benchmarks/limits.py``;
+ACTUAL and GW, 20 lights, 64 x 64 images): 585 MB at 130 objects, 620 to 650 MB at 520 and at
+1,040 (no growth measurable between them), so well under 1 GB at the limit; the run time grows
+as the objects squared."""
+
+INDEXING_SIZE = Limit(1024, "image side of an indexing experiment, in pixels", "--size / size")
+"""16 times the default 64. An image is 12 bytes a pixel (12 MB at the limit) and a block holds at
+least one, with its estimators' working copies: measured (``benchmarks/limits.py``, from 128 x
+128 to 512 x 512), 180 to 500 bytes a pixel with a gamut method (whose surface lists grow with
+the image), so a projected 0.9 to 1.2 GB at the limit."""
 
 RENDERED_IMAGES = Limit(20_000, "images rendered for training", "--pretrain-images / --rendered / Pretraining.images")
 """Ten times the default of 2,000; rendered and prepared images are held at once, about 0.18 MB
@@ -83,7 +120,9 @@ smaller ones to zero."""
 TABLE: tuple[Limit, ...] = (
     PIXELS,
     SCENES,
+    SCENE_RESULTS,
     SAMPLE_SCENES,
+    SAMPLE_SURFACES,
     SIGMA,
     CSV_ROWS,
     CSV_BYTES,
@@ -92,6 +131,7 @@ TABLE: tuple[Limit, ...] = (
     CACHE_ENTRY_BYTES,
     SEED,
     OBJECTS,
+    INDEXING_SIZE,
     RENDERED_IMAGES,
     SHARPENING_PENALTY,
     VALUE,
@@ -126,6 +166,31 @@ def require_count(value, name: str, low: int, high: int | Limit | None = None) -
     if number < low or (top is not None and number > top):
         raise ValueError(f"{name}: expected {span}, got {number}")
     return number
+
+
+def require_product(factors: tuple[tuple[int, str], ...], name: str, limit: Limit) -> int:
+    """The product of counts that are held at once together (``compare``'s scenes times surface
+    counts times methods); a ``ValueError`` naming ``name``, each factor and ``limit`` when it
+    is over the limit.
+
+    Arguments:
+        factors: ``(count, what)`` pairs, e.g. ``((1000, "scenes"), (5, "surface counts"))``.
+        name: the argument's name, for the error.
+        limit: the bound on the product.
+
+    Returns:
+        The product.
+
+    Raises:
+        ValueError: the product is over ``limit``.
+    """
+    total = 1
+    for count, _ in factors:
+        total *= count
+    if total > limit.value:
+        spelled = " x ".join(f"{count:,} {what}" for count, what in factors)
+        raise ValueError(f"{name}: {spelled} = {total:,} is over {describe(limit)}")
+    return total
 
 
 def check_csv(path, line: int | None = None) -> None:
@@ -223,12 +288,15 @@ __all__ = [
     "CACHE_ENTRY_BYTES",
     "CSV_BYTES",
     "CSV_ROWS",
+    "INDEXING_SIZE",
     "NESTING",
     "OBJECTS",
     "PIXELS",
     "RECORD_BYTES",
     "SAMPLE_SCENES",
+    "SAMPLE_SURFACES",
     "SCENES",
+    "SCENE_RESULTS",
     "SEED",
     "SHARPENING_PENALTY",
     "SIGMA",
@@ -241,4 +309,5 @@ __all__ = [
     "check_value",
     "describe",
     "require_count",
+    "require_product",
 ]

@@ -119,7 +119,7 @@ def test_an_unknown_pretraining_camera_is_named_by_its_option(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(("kind", "needle"), [("file", "is not a folder"), ("missing", "no such folder")])
-@pytest.mark.parametrize("command", ["cameras", "calibrate"])
+@pytest.mark.parametrize("command", ["cameras", "calibrate", "reproduce"])
 def test_data_dir_must_be_a_folder(tmp_path, capsys, kind, needle, command):
     given = tmp_path / kind
     if kind == "file":

@@ -82,7 +82,7 @@ def add_indexing(sub) -> None:
     )
     p.add_argument(
         "--size",
-        type=whole,
+        type=count_within(limits.INDEXING_SIZE),
         default=64,
         help="image side in pixels (default: %(default)s)",
     )

@@ -25,6 +25,7 @@ from ccjax.cli.common import (
     write_outputs,
     write_plot,
 )
+from ccjax.cli.option_checks import data_folder
 
 DEFAULT_COMPARE_METHODS = [
     "NOTHING",
@@ -100,7 +101,9 @@ def add_compare(sub) -> None:
     )
     overwrite_argument(p, "--plot, --json and --csv files")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    p.set_defaults(func=run_compare)
+    # The parser's own error (usage, one line, exit 2) for checks across options, made once all
+    # of them are parsed (check_scene_results).
+    p.set_defaults(func=run_compare, usage_error=p.error)
 
 
 PLOTTED = ("rg", "angular")
@@ -115,6 +118,7 @@ def run_compare(args) -> int:
     from ccjax.runs import CompileLog
 
     imported = time.perf_counter()
+    check_scene_results(args)
     check_outputs([], [("--plot", args.plot), ("--json", args.json), ("--csv", args.csv)], overwrite=args.overwrite)
     check_plot(args.plot)
     out = table_stream(args)  # stderr when --json - or --csv - puts the data on stdout
@@ -177,6 +181,23 @@ def run_compare(args) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def check_scene_results(args) -> None:
+    """Refuse, as the parser refuses an option past its limit (usage, one line, exit 2), a
+    comparison whose scenes x surface counts x methods is over :data:`ccjax.limits.SCENE_RESULTS`
+    (each keeps a few numbers per scene), before anything is built. Without ``--methods`` the
+    default set is counted whole (an untrained net among it is dropped later).
+
+    Arguments:
+        args: the parsed arguments (``scenes``, ``surfaces``, ``methods``, ``usage_error``).
+    """
+    methods = args.methods or DEFAULT_COMPARE_METHODS
+    factors = ((args.scenes, "scenes"), (len(set(args.surfaces)), "surface counts"), (len(methods), "methods"))
+    try:
+        limits.require_product(factors, "--scenes", limits.SCENE_RESULTS)
+    except ValueError as error:
+        args.usage_error(str(error))
 
 
 def check_surface_methods(labels: list[str]) -> None:
@@ -252,6 +273,7 @@ def add_reproduce(sub) -> None:
     )
     p.add_argument(
         "--data-dir",
+        type=data_folder,
         default=None,
         help="external data directory (else $CCJAX_DATA, else ../shared/data)",
     )

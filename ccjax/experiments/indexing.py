@@ -24,9 +24,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int, PRNGKeyArray
+from jaxtyping import Array, Bool, Float, Int, Key, PRNGKeyArray
 
-from ccjax import scenes
+from ccjax import limits, scenes
 from ccjax._colour import rg_bin
 from ccjax.metrics import rg, rg_error
 
@@ -79,48 +79,123 @@ def rank_scores(ranks) -> tuple[tuple[float, float, float], tuple[int, int, int]
 # ---------------------------------------------------------------------------------------------
 # The synthetic experiment
 
+BLOCK_PIXELS = 1 << 19
+"""Pixels of the images rendered and estimated at once (6 MB of float32 RGB; 128 images of the
+default 64 x 64): the experiment goes in blocks of ``BLOCK_PIXELS // size**2`` images (at least
+one), so its memory does not grow with the images. The estimators' working memory is most of a
+block's (measured: about 1.7 MB an image for a gamut method on 64 x 64 images)."""
 
-class ObjectImages(eqx.Module):
-    """The experiment's images: database (canonical light) and queries (object x light)."""
 
-    database: Float[Array, "O H W 3"]
-    queries: Float[Array, "O L H W 3"]
-    query_whites: Float[Array, "L 3"]  # light of each query column (unit max channel)
+class ObjectKeys(eqx.Module):
+    """What draws every image of the experiment: the objects' keys, the query lights and keys."""
+
+    objects: Key[Array, " O"]  # one key per object: its surfaces, layout and database image
+    lights: Int[Array, " L"]  # indices of the query lights among the world's test illuminants
+    queries: Key[Array, "O L"]  # one key per query image: its pose, shading and noise
+
+
+def object_keys(key: PRNGKeyArray, n_objects: int, n_lights: int, n_available: int) -> ObjectKeys:
+    """Split the experiment's key into per-object and per-query keys (the images do not depend on
+    how they are grouped into blocks).
+
+    Arguments:
+        key: the experiment's key.
+        n_objects, n_lights: the experiment's dimensions.
+        n_available: the world's test illuminants, drawn from without replacement.
+
+    Returns:
+        :class:`ObjectKeys`.
+    """
+    key_objects, key_lights = jax.random.split(key)
+    lights = jax.random.choice(key_lights, n_available, (n_lights,), replace=False)
+    objects = jax.random.split(key_objects, n_objects)
+    queries = jax.vmap(lambda k: jax.random.split(jax.random.split(k, 4)[3], n_lights))(objects)
+    return ObjectKeys(objects=objects, lights=lights, queries=queries)
+
+
+def _object(tables, object_key, n_surfaces: int, size: int):
+    key_surf, key_layout, key_db, _ = jax.random.split(object_key, 4)
+    surfaces = scenes.draw_without_replacement(key_surf, tables.surface_rgb.shape[1], n_surfaces)
+    return surfaces, scenes.mondrian_layout(key_layout, size, size, n_surfaces), key_db
 
 
 @eqx.filter_jit
-def render_objects(
-    key: PRNGKeyArray, world, n_objects: int, n_surfaces: int, n_lights: int, size: int, noise
-) -> ObjectImages:
-    """Draw the objects and render database and query images (see the module docstring)."""
-    tables = scenes.SceneTables.from_world(world)
-    key_objects, key_lights = jax.random.split(key)
-    lights = jax.random.choice(key_lights, tables.whites.shape[0], (n_lights,), replace=False)
+def render_database(tables, objects: Key[Array, " B"], n_surfaces: int, size: int, noise) -> Float[Array, "B H W 3"]:
+    """The database images (canonical light) of a block of objects, from their keys.
 
-    def one_object(object_key):
-        key_surf, key_layout, key_db, key_queries = jax.random.split(object_key, 4)
-        surfaces = scenes.draw_without_replacement(key_surf, tables.surface_rgb.shape[1], n_surfaces)
-        labels = scenes.mondrian_layout(key_layout, size, size, n_surfaces)
-        database, _ = scenes.render_mondrian(
+    Arguments:
+        tables: the world's :class:`~ccjax.scenes.SceneTables`.
+        objects: the objects' keys (:attr:`ObjectKeys.objects`).
+        n_surfaces, size: reflectances per object and image side (static).
+        noise: image noise, or None.
+
+    Returns:
+        ``(B, size, size, 3)`` images.
+    """
+
+    def one(object_key):
+        surfaces, labels, key_db = _object(tables, object_key, n_surfaces, size)
+        image, _ = scenes.render_mondrian(
             key_db, labels, tables.canonical_rgb[surfaces], tables.canonical_white, noise=noise
         )
+        return image
 
-        def query(query_key, light):
-            key_pose, key_render = jax.random.split(query_key)
-            flips = jax.random.bernoulli(key_pose, 0.5, (3,))
-            posed = jnp.where(flips[0], labels[::-1], labels)
-            posed = jnp.where(flips[1], posed[:, ::-1], posed)
-            posed = jnp.where(flips[2], posed.T, posed)  # square images: transposition is a pose
-            image, _ = scenes.render_mondrian(
-                key_render, posed, tables.surface_rgb[light, surfaces], tables.whites[light], noise=noise
-            )
-            return image
+    return jax.vmap(one)(objects)
 
-        queries = jax.vmap(query)(jax.random.split(key_queries, n_lights), lights)
-        return database, queries
 
-    database, queries = jax.vmap(one_object)(jax.random.split(key_objects, n_objects))
-    return ObjectImages(database=database, queries=queries, query_whites=tables.whites[lights])
+@eqx.filter_jit
+def render_queries(
+    tables,
+    objects: Key[Array, " B"],
+    queries: Key[Array, " B"],
+    lights: Int[Array, " B"],
+    n_surfaces: int,
+    size: int,
+    noise,
+) -> Float[Array, "B H W 3"]:
+    """A block of query images: image ``i`` shows object ``objects[i]`` under test light
+    ``lights[i]`` in a new pose (random flips and transposition), drawn from ``queries[i]``.
+
+    Arguments:
+        tables: the world's :class:`~ccjax.scenes.SceneTables`.
+        objects: each image's object key (:attr:`ObjectKeys.objects`).
+        queries: each image's own key (:attr:`ObjectKeys.queries`).
+        lights: each image's light, an index into the tables' test illuminants.
+        n_surfaces, size: reflectances per object and image side (static).
+        noise: image noise, or None.
+
+    Returns:
+        ``(B, size, size, 3)`` images.
+    """
+
+    def one(object_key, query_key, light):
+        surfaces, labels, _ = _object(tables, object_key, n_surfaces, size)
+        key_pose, key_render = jax.random.split(query_key)
+        flips = jax.random.bernoulli(key_pose, 0.5, (3,))
+        posed = jnp.where(flips[0], labels[::-1], labels)
+        posed = jnp.where(flips[1], posed[:, ::-1], posed)
+        posed = jnp.where(flips[2], posed.T, posed)  # square images: transposition is a pose
+        image, _ = scenes.render_mondrian(
+            key_render, posed, tables.surface_rgb[light, surfaces], tables.whites[light], noise=noise
+        )
+        return image
+
+    return jax.vmap(one)(objects, queries, lights)
+
+
+def blocks(n_items: int, size: int) -> list[np.ndarray]:
+    """Indices ``0 .. n_items - 1`` in blocks of ``max(1, BLOCK_PIXELS // size**2)``; the last
+    block is padded with its last index, so every block has one shape (one compiled program).
+
+    Arguments:
+        n_items: the number of images.
+        size: the image side in pixels.
+
+    Returns:
+        The blocks' index arrays (the padding is dropped by keeping ``[: n_items - start]``).
+    """
+    block = max(1, min(n_items, BLOCK_PIXELS // (size * size)))
+    return [np.minimum(np.arange(start, start + block), n_items - 1) for start in range(0, n_items, block)]
 
 
 def _dark_mask(images: Float[Array, "... H W 3"], dark: float | Float[Array, ""]) -> Bool[Array, "... H W"]:
@@ -194,17 +269,18 @@ def _batched(model, rgb, mask):
 
 
 @jax.jit
-def _scores(queries, whites, estimates, canonical_white, database_histograms, dark):
-    """Correct each query by its estimate, histogram it, rank the correct object."""
-    n_objects, n_lights = queries.shape[:2]
-    maps = canonical_white / jnp.maximum(estimates, 1e-12)  # (O, L, 3)
-    corrected = queries * maps[:, :, None, None, :]
-    usable = _dark_mask(queries, dark)
-    histograms = jax.vmap(jax.vmap(rg_histogram))(corrected, usable).reshape(n_objects * n_lights, BINS, BINS)
-    truth = jnp.repeat(jnp.arange(n_objects), n_lights)
+def _histograms(images: Float[Array, "B H W 3"], dark) -> Float[Array, "B b b"]:
+    return jax.vmap(rg_histogram)(images, _dark_mask(images, dark))
+
+
+@jax.jit
+def _scores(queries, whites, estimates, canonical_white, database_histograms, truth, dark):
+    """Correct each query of a block by its estimate, histogram it, rank the correct object."""
+    maps = canonical_white / jnp.maximum(estimates, 1e-12)  # (B, 3)
+    corrected = queries * maps[:, None, None, :]
+    histograms = jax.vmap(rg_histogram)(corrected, _dark_mask(queries, dark))
     ranks = correct_ranks(intersection(histograms, database_histograms), truth)
-    errors = rg_error(estimates, jnp.broadcast_to(whites[None], estimates.shape)).reshape(-1)
-    return ranks, errors
+    return ranks, rg_error(estimates, whites)
 
 
 def run_indexing(
@@ -229,39 +305,76 @@ def run_indexing(
         methods: estimator labels; ``"ACTUAL"`` is the true light.
         key: ``jax.random`` key of objects, lights, poses, shading and noise.
         n_objects, n_surfaces, n_lights, size: the experiment's dimensions (thesis: 20 objects,
-            11 lights; the defaults: a synthetic version with 50 objects of 8 reflectances, 20 lights).
+            11 lights; the defaults: a synthetic version with 50 objects of 8 reflectances, 20 lights);
+            ``n_objects`` at most :data:`ccjax.limits.OBJECTS`, ``size`` at most
+            :data:`ccjax.limits.INDEXING_SIZE`. The images are rendered, estimated and scored in
+            blocks of :data:`BLOCK_PIXELS` pixels: what grows with the objects is only what is
+            kept (each object's histogram, each query's rank and error per method).
         noise: image noise (variance ``a * rho + b``), or None.
         preprocessing, dark: the image pipeline's settings for surface-list methods.
         fit: ``fit(label, world) -> estimator`` (default :func:`ccjax.runs.store.fit`).
-        progress: show a progress bar over methods.
+        progress: show a progress bar over the blocks of images and the methods.
 
     Returns:
         :class:`IndexingResult`.
+
+    Raises:
+        ValueError: a dimension out of range or past its limit, naming the argument (before any
+            image is rendered).
     """
     from tqdm.auto import tqdm
 
     from ccjax.runs import store
 
+    n_objects = limits.require_count(n_objects, "n_objects", 1, limits.OBJECTS)
+    size = limits.require_count(size, "size", 1, limits.INDEXING_SIZE)
     if not 1 <= n_lights <= world.test_illuminants.shape[0]:
         raise ValueError(f"n_lights: expected 1 .. {world.test_illuminants.shape[0]}, got {n_lights}")
     if not 1 <= n_surfaces <= world.reflectances.shape[0]:
         raise ValueError(f"n_surfaces: expected 1 .. {world.reflectances.shape[0]}, got {n_surfaces}")
     fit = fit or store.fit
-    rendered = render_objects(key, world, n_objects, n_surfaces, n_lights, size, noise)
-    database_histograms = jax.vmap(rg_histogram)(rendered.database, _dark_mask(rendered.database, dark))
-    queries = np.asarray(rendered.queries)
-    whites = rendered.query_whites
-    result = IndexingResult(n_queries=n_objects * n_lights)
-    for label in tqdm(list(methods), desc="methods", disable=not progress):
-        if label == "ACTUAL":
-            estimates = np.broadcast_to(np.asarray(whites)[None], (n_objects, n_lights, 3))
-        else:
-            flat, _ = _estimates(fit(label, world), queries, preprocessing, dark)
-            estimates = flat.reshape(n_objects, n_lights, 3)
-        ranks, errors = _scores(
-            rendered.queries, whites, jnp.asarray(estimates), world.canonical_white, database_histograms, dark
+    tables = scenes.SceneTables.from_world(world)
+    keys = object_keys(key, n_objects, n_lights, tables.whites.shape[0])
+    # Pass 1: every object's database histogram (1 KB an object), from blocks of images.
+    database = np.zeros((n_objects, BINS, BINS), np.float32)
+    for index in blocks(n_objects, size):
+        count = min(len(index), n_objects - int(index[0]))
+        images = render_database(tables, keys.objects[index], n_surfaces, size, noise)
+        database[index[0] : index[0] + count] = np.asarray(_histograms(images, dark))[:count]
+    database_histograms = jnp.asarray(database)
+    # Pass 2: blocks of query images (query q shows object q // n_lights under light q % n_lights),
+    # each rendered once and estimated by every method; only ranks and errors are kept.
+    models = {label: fit(label, world) for label in methods if label != "ACTUAL"}
+    n_queries = n_objects * n_lights
+    ranks = {label: np.zeros(n_queries, np.int64) for label in methods}
+    errors = {label: np.zeros(n_queries, np.float64) for label in methods}
+    query_blocks = blocks(n_queries, size)
+    bar = tqdm(total=len(query_blocks) * len(ranks), desc="methods x blocks", disable=not progress)
+    for index in query_blocks:
+        start = int(index[0])
+        count = min(len(index), n_queries - start)
+        objects, columns = index // n_lights, index % n_lights
+        lights = keys.lights[columns]
+        images = render_queries(
+            tables, keys.objects[objects], keys.queries[objects, columns], lights, n_surfaces, size, noise
         )
-        (s1, s2, s3), (n1, n2, n3) = rank_scores(ranks)
-        rms = float(np.sqrt(np.mean(np.asarray(errors, np.float64) ** 2)))
+        whites = tables.whites[lights]
+        pixels = np.asarray(images)
+        for label in ranks:
+            if label == "ACTUAL":
+                estimates = whites
+            else:
+                estimates = jnp.asarray(_estimates(models[label], pixels, preprocessing, dark)[0])
+            block_ranks, block_errors = _scores(
+                images, whites, estimates, world.canonical_white, database_histograms, jnp.asarray(objects), dark
+            )
+            ranks[label][start : start + count] = np.asarray(block_ranks)[:count]
+            errors[label][start : start + count] = np.asarray(block_errors)[:count]
+            bar.update()
+    bar.close()
+    result = IndexingResult(n_queries=n_queries)
+    for label in ranks:
+        (s1, s2, s3), (n1, n2, n3) = rank_scores(ranks[label])
+        rms = float(np.sqrt(np.mean(errors[label] ** 2)))
         result.rows[label] = {"rg_error": rms, "score1": s1, "score2": s2, "score3": s3, "n1": n1, "n2": n2, "n3": n3}
     return result

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import jax
 
+from ccjax import limits
 from ccjax.estimators import inputs, registry
 from ccjax.estimators.base import AbstractEstimator
 from ccjax.experiments.sweep_results import SweepResult
@@ -163,7 +164,9 @@ def sweep(
         methods: labels (``"GW"``), fitted surface estimators, or ``(label, estimator)`` pairs.
             Image estimators (grey edge) are refused with a ValueError.
         n_surfaces: numbers of surfaces per scene.
-        n_scenes: scenes per number of surfaces (1000 in the thesis).
+        n_scenes: scenes per number of surfaces (1000 in the thesis; at most
+            :data:`ccjax.limits.SCENES`, and times the surface counts and the methods at most
+            :data:`ccjax.limits.SCENE_RESULTS`).
         key: PRNG key (default ``jax.random.key(0)``).
         specular, noise, clip, metallic, fluorescent: the scene options
             (:meth:`ccjax.scenes.SceneOptions.resolve`; ``True``: the thesis recipe).
@@ -188,6 +191,11 @@ def sweep(
     Returns:
         A :class:`SweepResult`: its tables (:meth:`SweepResult.report`, ``to_csv``, ``to_json``) and
         its figure, one call: :func:`ccjax.experiments.plot_sweep`.
+
+    Raises:
+        ValueError: a count out of range or past its limit (``n_scenes`` times the surface
+            counts and the methods past :data:`ccjax.limits.SCENE_RESULTS` is refused before
+            anything is fitted), or a method that is not a surface estimator.
     """
     if not isinstance(n_scenes, int) or n_scenes < 1:
         raise ValueError(f"n_scenes: expected a positive integer, got {n_scenes!r}")
@@ -195,6 +203,9 @@ def sweep(
     surfaces = [int(n) for n in n_surfaces]
     if not surfaces or any(not 1 <= n <= n_reflectances for n in surfaces):
         raise ValueError(f"n_surfaces: expected integers in [1, {n_reflectances}], got {list(n_surfaces)}")
+    # Each (method, surface count) cell keeps a few numbers per scene until the sweep ends.
+    cells = ((n_scenes, "scenes"), (len(set(surfaces)), "surface counts"), (len(methods), "methods"))
+    limits.require_product(cells, "n_scenes", limits.SCENE_RESULTS)
     options = SceneOptions.resolve(specular, noise, clip, metallic, fluorescent)
     counts: dict[str, int] = {}
     resolved = resolve_methods(world, methods, counts, progress=progress)

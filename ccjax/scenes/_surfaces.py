@@ -380,7 +380,8 @@ def sample(
     Arguments:
         key: a ``jax.random`` key.
         world: the world (test illuminants, reflectances, camera).
-        n_scenes: number of scenes ``B``.
+        n_scenes: number of scenes ``B`` (at most :data:`ccjax.limits.SAMPLE_SCENES`, and
+            ``B * P`` at most :data:`ccjax.limits.SAMPLE_SURFACES`: every scene is held at once).
         n_surfaces: surfaces per scene ``P`` (drawn without replacement, at most the number of
             reflectances).
         specular: ``True`` for the thesis recipe (:class:`Specular` defaults) or a :class:`Specular`.
@@ -403,6 +404,10 @@ def sample(
     Returns:
         :class:`Scenes` with batch size ``n_scenes``.
 
+    Raises:
+        ValueError: a count out of range or past its limit, naming the argument (before any
+            scene is drawn).
+
     Example:
         Scenes under the training lights, with per-scene light indices:
 
@@ -415,6 +420,8 @@ def sample(
     n_reflectances = int(world.reflectances.shape[0])
     n_scenes = require_count(n_scenes, "n_scenes", 1, limits.SAMPLE_SCENES)
     n_surfaces = require_count(n_surfaces, "n_surfaces", 1, n_reflectances)
+    # Every scene is returned at once: what is held is the scenes times their surfaces.
+    limits.require_product(((n_scenes, "scenes"), (n_surfaces, "surfaces")), "n_scenes", limits.SAMPLE_SURFACES)
     options = SceneOptions.resolve(specular, noise, clip, metallic, fluorescent)
     tables = SceneTables.from_world(
         world,
