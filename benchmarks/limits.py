@@ -111,26 +111,14 @@ def rows() -> list[Row]:
             (128**2, 512**2),
             int(limits.INDEXING_SIZE.value) ** 2,
         ),
-        Row(
-            "sample-64",
-            "surface",
-            SAMPLE.format(n="{n}", surfaces=64, options=False),
-            (64 * 20_000, 64 * 60_000),
-            int(limits.SAMPLE_SURFACES.value),
-        ),
-        Row(
-            "sample-64-all",
-            "surface",
-            SAMPLE.format(n="{n}", surfaces=64, options=True),
-            (64 * 5_000, 64 * 15_000),
-            int(limits.SAMPLE_SURFACES.value),
-        ),
-        Row(
-            "sample-max-all",
-            "surface",
-            SAMPLE.format(n="{n}", surfaces=0, options=True),
-            (max_surfaces * 200, max_surfaces * 600),
-            at_max,
+        # ccjax.sample: 64 surfaces a scene, plain and with every scene option; every surface.
+        *(
+            Row(name, "surface", SAMPLE.format(n="{n}", surfaces=surfaces, options=options), sizes, at_limit)
+            for name, surfaces, options, sizes, at_limit in (
+                ("sample-64", 64, False, (64 * 20_000, 64 * 60_000), int(limits.SAMPLE_SURFACES.value)),
+                ("sample-64-all", 64, True, (64 * 5_000, 64 * 15_000), int(limits.SAMPLE_SURFACES.value)),
+                ("sample-max-all", 0, True, (max_surfaces * 200, max_surfaces * 600), at_max),
+            )
         ),
         Row("compare", "scene result", COMPARE, (4 * 50_000, 4 * 1_000_000), int(limits.SCENE_RESULTS.value)),
         Row("rendered-images", "image", RENDERED, (200, 2000), int(limits.RENDERED_IMAGES.value)),

@@ -11,9 +11,9 @@ import warnings
 
 import numpy as np
 import pytest
+from image_files import textured_image
 
 from ccjax import cli
-from ccjax.io import writing
 from ccjax.runs import folders
 
 CAMERA = "Canon EOS 5D Mark II"
@@ -132,24 +132,9 @@ def test_data_dir_must_be_a_folder(tmp_path, capsys, kind, needle, command):
     assert "argument --data-dir" in line and str(given) in line and needle in line, line
 
 
-@pytest.fixture
-def setup(small_world_commands, monkeypatch):
-    """The small world for every command, a private cache, the identity preview matrix (fast)."""
-    import ccjax.io
-
-    monkeypatch.setattr(ccjax.io, "preview_matrix_cached", lambda world: np.eye(3, dtype=np.float32))
-    return small_world_commands
-
-
-def _image(path, colour=(0.5, 0.4, 0.3)):
-    rgb = np.broadcast_to(np.asarray(colour), (6, 6, 3)).copy()
-    rgb[::2, ::3] *= 0.5  # some texture
-    writing.write_linear(path, rgb)
-    return path
-
-
-def test_a_complex_sharpening_array_is_refused_naming_its_dtype(setup, capsys):
-    image = _image(setup / "in.png")
+def test_a_complex_sharpening_array_is_refused_naming_its_dtype(plain_preview_commands, capsys):
+    setup = plain_preview_commands
+    image = textured_image(setup / "in.png")
     sharpening = setup / "complex.npy"
     np.save(sharpening, np.eye(3, dtype=np.complex128) * (1 + 1j))
     argv = ["correct", str(image), str(setup / "out.png"), "--method", "GW", "--sharpening", str(sharpening)]
@@ -162,11 +147,12 @@ def test_a_complex_sharpening_array_is_refused_naming_its_dtype(setup, capsys):
     assert not (setup / "out.png").exists()
 
 
-def test_an_output_that_appears_during_a_folder_run_fails_that_image_only(setup, monkeypatch, capsys):
+def test_an_output_that_appears_during_a_folder_run_fails_that_image_only(plain_preview_commands, monkeypatch, capsys):
+    setup = plain_preview_commands
     source = setup / "in"
     source.mkdir()
     for name, colour in (("a", (0.5, 0.4, 0.3)), ("b", (0.3, 0.4, 0.5)), ("c", (0.4, 0.5, 0.3))):
-        _image(source / f"{name}.png", colour)
+        textured_image(source / f"{name}.png", colour)
     out = setup / "out"
     out.mkdir()
     real = folders.fitted
