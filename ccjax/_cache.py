@@ -9,7 +9,6 @@ cache file can be read without running code from it.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import errno
 import functools
@@ -256,39 +255,12 @@ def atomic_write(path: Path, blob: bytes | Callable[[BinaryIO], object], *, repl
     atomic_write_files({Path(path): blob}, replace=replace)
 
 
-@contextlib.contextmanager
-def _folders_locked(folders: set[Path]) -> Iterator[None]:
-    """Hold an exclusive advisory lock (``flock``) on each folder while a pair of files is put in
-    place, so that two processes writing the same pair (two ``correct --overwrite`` runs) put
-    their renames one after the other instead of leaving the image of one beside the preview of
-    the other. The folders are locked in one order (no deadlock); the lock is on the folder
-    itself, so nothing is created in it. Where ``flock`` is missing (Windows) or a folder cannot
-    be opened, the renames go ahead unlocked, as before."""
-    try:
-        import fcntl
-    except ImportError:
-        folders = set()
-    with contextlib.ExitStack() as stack:
-        for folder in sorted(folders):
-            try:
-                descriptor = os.open(folder, os.O_RDONLY)
-            except OSError:
-                continue
-            stack.callback(os.close, descriptor)
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX)
-            except OSError:
-                continue
-        yield
-
-
 def atomic_write_files(files: Mapping[Path, bytes | Callable[[BinaryIO], object]], *, replace: bool = True) -> None:
     """Write several files that belong together (a model and its record) so that they appear
     together or not at all: every file is first written whole to a temporary (where a full disk
     or an error stops the write, nothing has appeared), then each is put in place
     (:func:`put_in_place`, a rename); should putting one in place fail, the ones this call put in
-    place before it are removed again. While several files are put in place their folders are
-    locked (:func:`_folders_locked`), so two writers of one pair do not interleave.
+    place before it are removed again.
 
     Arguments:
         files: path -> bytes, or a function that writes to the open binary file; put in place in
@@ -314,8 +286,8 @@ def atomic_write_files(files: Mapping[Path, bytes | Callable[[BinaryIO], object]
         for path, blob in zip(paths, files.values(), strict=True):
             temporaries.append(_write_temporary(path, blob))
         # Ctrl-C (and SIGTERM, where the command asked) wait until every file is in place: a pair
-        # is never left half old, half new by a signal, nor by another writer of the same pair.
-        with interrupts_held(), _folders_locked({path.parent for path in paths} if len(paths) > 1 else set()):
+        # is never left half old, half new by a signal.
+        with interrupts_held():
             for path, temporary in zip(paths, temporaries, strict=True):
                 put_in_place(temporary, path, overwrite=replace)
                 placed.append(path)
