@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ccjax import limits
+from ccjax._folder_lock import folders_locked
 from ccjax._signals import interrupts_held
 from ccjax._version import __version__
 
@@ -260,7 +261,8 @@ def atomic_write_files(files: Mapping[Path, bytes | Callable[[BinaryIO], object]
     together or not at all: every file is first written whole to a temporary (where a full disk
     or an error stops the write, nothing has appeared), then each is put in place
     (:func:`put_in_place`, a rename); should putting one in place fail, the ones this call put in
-    place before it are removed again.
+    place before it are removed again. While several files are put in place their folders are
+    locked (``folders_locked``), so two writers of one pair do not interleave.
 
     Arguments:
         files: path -> bytes, or a function that writes to the open binary file; put in place in
@@ -286,8 +288,8 @@ def atomic_write_files(files: Mapping[Path, bytes | Callable[[BinaryIO], object]
         for path, blob in zip(paths, files.values(), strict=True):
             temporaries.append(_write_temporary(path, blob))
         # Ctrl-C (and SIGTERM, where the command asked) wait until every file is in place: a pair
-        # is never left half old, half new by a signal.
-        with interrupts_held():
+        # is never left half old, half new by a signal, nor by another writer of the same pair.
+        with interrupts_held(), folders_locked({path.parent for path in paths} if len(paths) > 1 else ()):
             for path, temporary in zip(paths, temporaries, strict=True):
                 put_in_place(temporary, path, overwrite=replace)
                 placed.append(path)

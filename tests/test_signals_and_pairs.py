@@ -180,6 +180,45 @@ def test_interrupted_overwrites_leave_a_whole_pair_old_or_new(tmp_path):
         assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")], trial
 
 
+def test_two_writers_of_one_pair_put_their_files_in_place_one_after_the_other(tmp_path, monkeypatch):
+    """Two ``correct --overwrite`` runs of one output interleaved their renames (the image of one
+    beside the preview of the other in 2 of 3 trials). Here writer A puts its first file in place
+    and then waits up to 0.3 s for writer B to put both of its files in place: unlocked, B would
+    finish inside that wait and A's second file would land beside B's first; the pair's folder is
+    locked while a pair is put in place, so B waits for A and the pair is B's whole."""
+    import threading
+
+    from ccjax import _cache
+
+    pair = [tmp_path / "out.tif", tmp_path / "out_tif_preview.png"]
+    first_in_place, second_done = threading.Event(), threading.Event()
+    real = _cache.put_in_place
+
+    def put_in_place(temporary, path, *, overwrite):
+        real(temporary, path, overwrite=overwrite)
+        writer = threading.current_thread().name
+        if writer == "A" and path == pair[0]:
+            first_in_place.set()
+            second_done.wait(0.3)
+        if writer == "B" and path == pair[1]:
+            second_done.set()
+
+    monkeypatch.setattr(_cache, "put_in_place", put_in_place)
+
+    def write(name):
+        if name == "B":
+            first_in_place.wait(5)
+        _cache.atomic_write_files({path: name.encode() for path in pair})
+
+    threads = [threading.Thread(target=write, args=(name,), name=name) for name in "AB"]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(10)
+    assert [path.read_bytes() for path in pair] == [b"B", b"B"]
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
 def test_a_model_beside_another_runs_record_is_refused(tmp_path):
     """Two trainings write ``m.eqx`` and its record; the record of one beside the model of the
     other (a concurrent writer, or files copied apart) is refused when read, naming both files, as
