@@ -58,6 +58,7 @@ def any_camera_model() -> conditioned.AnyCamera:
     return model
 
 
+@pytest.mark.slow
 def test_one_model_serves_cameras_it_never_saw_by_their_curves(any_camera_model):
     for index, camera in enumerate(ASKED):
         images, masks, lights = renders(camera, 48, 100 + index)
@@ -71,6 +72,7 @@ def test_one_model_serves_cameras_it_never_saw_by_their_curves(any_camera_model)
         assert np.median(errors) <= 1.5 * np.median(own_errors), camera
 
 
+@pytest.mark.slow
 def test_binding_is_a_map_from_the_curves_and_a_file_holds_none(any_camera_model):
     camera = Camera.from_name(ASKED[0])
     bound = any_camera_model.bind(camera)
@@ -96,6 +98,7 @@ def test_twins_are_the_same_model_or_a_fingerprint_within_half_a_degree():
     assert conditioned.fingerprint_distance(cameras["Canon EOS 600D"], cameras["Nikon D5300"]) > 0.5
 
 
+@pytest.mark.slow
 def test_a_fold_never_sees_the_scored_folders_ground_truth(
     small_world_commands, small_test_world, tmp_path, monkeypatch
 ):
@@ -143,6 +146,7 @@ def test_a_fold_never_sees_the_scored_folders_ground_truth(
     assert not np.array_equal(np.asarray(kept[1].core.bias), np.asarray(kept[3].core.bias))  # ...and reached nikon's
 
 
+@pytest.mark.slow
 def test_the_commands_train_once_and_bind_the_camera_named(small_world_commands, small_test_world, monkeypatch, capsys):
     """``ccjax train --method any-camera`` records no camera, ``conditioned: true``, the cameras seen
     and the folders; estimate needs --camera and gives, for the camera named, what the model bound

@@ -146,6 +146,7 @@ def test_proposed_fit_recovers_truth(synthetic):
     assert cal.curve_error(pi.sensors, synthetic.sensors).max() > cal.curve_error(fit.sensors, synthetic.sensors).max()
 
 
+@pytest.mark.slow
 def test_joint_linearisation_recovers_random_a0_a1():
     """20 draws a0 ~ U(5, 20), a1 ~ U(1, 8), each data set fitted in one vmapped batch.
 

@@ -110,6 +110,7 @@ def _loco(root, *extra):
     ]
 
 
+@pytest.mark.slow
 def test_each_folder_is_scored_by_a_model_that_never_saw_its_ground_truth(
     small_world_commands, small_test_world, two_folders, tmp_path, monkeypatch
 ):
@@ -165,6 +166,7 @@ def test_each_folder_is_scored_by_a_model_that_never_saw_its_ground_truth(
         assert len(notes) == 1 and "nikon (Nikon D5300, mapped per-light)" in notes[0] and "canon (" not in notes[0]
 
 
+@pytest.mark.slow
 def test_a_model_for_one_camera_is_refused_on_another(small_world_commands, two_folders, capsys):
     model = small_world_commands / "for-nikon.eqx"
     argv = ["train", str(two_folders / "canon"), f"--camera-for=canon={CANON}", "--target-camera", NIKON]

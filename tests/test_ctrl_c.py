@@ -26,11 +26,15 @@ from ccjax import cli
 
 DELAYS = (0.0, 0.01, 0.03, 0.06, 0.1, 0.2, 0.35, 0.5, 0.8, 1.2)
 """Seconds from the start of ``main`` to SIGINT: the first ones land in the import of numpy and JAX
-(about 0.5-1.5 s on the CI machine), the last ones in the command's work (``ccjax methods`` fits
-and lists every label for several seconds)."""
+(about 0.5-1.5 s on the CI machine), the last ones in the command's work (``ccjax compare`` with
+an empty cache fits and compiles for many seconds)."""
 
 QUICK_DELAYS = {"python -m ccjax": (0.0, 0.03, 0.1, 0.4), "console script": (0.05, 1.2)}
 """The default suite's share of :data:`DELAYS`, run concurrently (each trial costs a process start)."""
+
+WORK = ("compare", "--no-progress")
+"""The command interrupted: each trial has its own empty cache, so it is still fitting or compiling
+at the last delay."""
 
 
 def _module(line: str) -> str:
@@ -105,15 +109,15 @@ def _command(entry: str) -> list[str]:
         script = _console_script()
         if script is None:
             pytest.skip("the ccjax console script is not installed")
-        return [str(script), "methods"]
-    return ["-m", "ccjax", "methods"]
+        return [str(script), *WORK]
+    return ["-m", "ccjax", *WORK]
 
 
 def _check(trials: list[tuple[float, tuple[int, list[str], str, bool]]]) -> None:
     for delay, (code, messages, text, _) in trials:
         assert "Traceback" not in text and "Exception ignored" not in text, (delay, text[-3000:])
         assert code == 130, (delay, code, messages)
-        assert len(messages) == 1 and messages[0] in ("ccjax: interrupted", "ccjax methods: interrupted"), messages
+        assert len(messages) == 1 and messages[0] in ("ccjax: interrupted", "ccjax compare: interrupted"), messages
     during_import = sum(result[3] for _, result in trials)
     assert during_import >= 1, f"none of {len(trials)} signals came during the import of JAX"
 
@@ -133,7 +137,8 @@ def test_ctrl_c_at_any_time_exits_130_with_one_line(tmp_path):
 @pytest.mark.parametrize("entry", ["python -m ccjax", "console script"])
 def test_ctrl_c_at_every_delay_exits_130_with_one_line(tmp_path, entry):
     command = _command(entry)
-    _check([(delay, _interrupt(command, delay, tmp_path)) for delay in DELAYS])
+    # Each trial with its own empty cache: a fit a trial stored would shorten the next one's work.
+    _check([(delay, _interrupt(command, delay, tmp_path / str(index))) for index, delay in enumerate(DELAYS)])
 
 
 @pytest.mark.slow

@@ -50,6 +50,7 @@ def check(result, labels):
     assert result.failures() == []
 
 
+@pytest.mark.slow
 def test_cheap_families_are_finite_and_honest(default_world):
     result = degenerate_sweep(default_world, CHEAP_LABELS, n_surfaces=8)
     check(result, CHEAP_LABELS)

@@ -209,6 +209,7 @@ print(json.dumps({"worst": worst, "same_status": same_status}))
 """
 
 
+@pytest.mark.slow
 def test_sharded_run_equals_one_device():
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
     out = subprocess.run([sys.executable, "-c", SHARDED], env=env, capture_output=True, text=True, timeout=600)

@@ -74,6 +74,7 @@ def test_geometric_mean_of_a_zero_is_zero_and_bad_values_are_refused():
             geometric_mean(bad)
 
 
+@pytest.mark.slow
 def test_rows_and_geometric_means_match_numpy(setup, folder_sets, capsys):
     report_file = setup / "sets.json"
     argv = _argv(folder_sets, "--methods", "GW,shades-of-grey-p6", "--folds", "3", "--train", "grey-edge-1-6-2")

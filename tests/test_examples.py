@@ -38,6 +38,7 @@ def table_rows(text: str, pattern: str) -> list[list[float]]:
     return rows
 
 
+@pytest.mark.slow
 def test_sharded_sweep_quick():
     out = run_example("sharded_sweep.py", "--quick")
     assert "4 cpu devices" in out
@@ -58,6 +59,7 @@ def camera_medians(out: str, n_methods: int) -> list[list[float]]:
     return rows
 
 
+@pytest.mark.slow
 def test_camera_sweep_quick():
     rows = camera_medians(run_example("camera_sweep.py", "--quick"), 6)
     assert len(rows) == 4
@@ -105,6 +107,7 @@ def test_learned_sharpening_quick():
     check_learned_sharpening(run_example("learned_sharpening.py", "--quick"))
 
 
+@pytest.mark.slow
 def test_synthetic_raw_evaluation_quick():
     out = run_example("synthetic_raw_evaluation.py", "--quick")
     assert "wrote 60 images of 64x64" in out
@@ -150,6 +153,7 @@ def test_any_camera_quick():
     assert len(scored) >= 1 and 0 < scored[0][0] < 30, out
 
 
+@pytest.mark.slow
 def test_calibrate_synthetic_quick():
     out = run_example("calibrate_synthetic.py", "--quick")
     assert "RMS relative error" in out and "pseudo-inverse" in out

@@ -185,6 +185,7 @@ def test_extension_parsing_and_labels(default_world):
         registry.fit("SP-CRULE-ICA", default_world)
 
 
+@pytest.mark.slow
 def test_extended_estimates_are_finite_on_degenerate_scenes(default_world):
     from ccjax.estimators.base import Status
 

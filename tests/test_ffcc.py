@@ -148,6 +148,7 @@ def test_preconditioned_regulariser_is_total_variation_plus_l2():
     assert spatial == pytest.approx(float(np.sum(latent.astype(np.float64) ** 2)), rel=1e-4)
 
 
+@pytest.mark.slow
 def test_training_objective_gradients_x64():
     rng = np.random.default_rng(8)
     n = 8

@@ -438,6 +438,7 @@ def test_the_command_line_refuses_options_past_their_limits(commands, case):
     assert _check_run(commands, [command, *folder, option, value]) == 2
 
 
+@pytest.mark.slow
 @given(
     image_files(),
     st.sampled_from(["GW", "shades-of-grey-p6", "grey-edge-1-6-2", "grey-edge-1-6-65", "NOPE"]),

@@ -373,6 +373,7 @@ def test_labels(default_world):
         registry.fit("ECRULE-MV", default_world, tau=0.1)
 
 
+@pytest.mark.slow
 @pytest.mark.external_data
 def test_mv_brightness_beats_averaging_and_scwia_interpolates(barnard_world, run_all):
     """Thesis §4.7 / §6.2 on 300 scenes of the thesis world: MV estimates brightness better than
@@ -392,6 +393,7 @@ def test_mv_brightness_beats_averaging_and_scwia_interpolates(barnard_world, run
 # differentiable variant
 
 
+@pytest.mark.slow
 def test_soft_variant_gradients_x64(default_world, models):
     from jax.test_util import check_grads
 
@@ -665,7 +667,9 @@ def test_relaxed_scenes_equal_the_unreduced_engine(default_world):
             )
 
 
-@pytest.mark.parametrize("n_surfaces", [8, 32, 64])
+@pytest.mark.parametrize(
+    "n_surfaces", [pytest.param(8, marks=pytest.mark.slow), 32, pytest.param(64, marks=pytest.mark.slow)]
+)
 def test_mv_box_forms_keep_every_maximum_in_the_box(default_world, models, n_surfaces):
     """MV's objective reads, inside a box around its start, only `_mv.box_forms`' forms: at
     random valid directions of the box, their maximum is the maximum over every top-facet form

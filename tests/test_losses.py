@@ -54,6 +54,7 @@ def test_mapping_loss_matches_reference():
     assert float(losses.mapping_loss(estimate, rgb, mask, canonical, white)) == pytest.approx(rgb_rms, rel=1e-5)
 
 
+@pytest.mark.slow
 def test_check_grads_x64_generic_and_zero_error():
     rng = np.random.default_rng(5)
     with jax.enable_x64(True):

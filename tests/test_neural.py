@@ -260,6 +260,7 @@ def test_missing_weights_error_says_how_to_train(cache, label, name, command):
     assert not weights_ready(label, world) and weights_ready("GW", world)
 
 
+@pytest.mark.slow
 def test_training_learns_from_the_histogram():
     world = tiny_world()
     schedule = neural.Schedule(steps=300, batch_size=32, learning_rate=1e-2)
@@ -345,6 +346,7 @@ def test_log_chroma_histogram_is_scale_free(scale):
     np.testing.assert_allclose(got, log_chroma_reference(rgb, mask), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_log_chroma_net_starts_grey_and_trains(default_world):
     from ccjax import losses, training
 

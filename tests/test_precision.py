@@ -162,7 +162,7 @@ def test_sharpening_uses_highest(world):
     "options",
     [
         {},  # box-constrained: projected gradient and the active-set polish
-        {"max_abs_error": 0.05},  # error bounds: BoxOSQP
+        pytest.param({"max_abs_error": 0.05}, marks=pytest.mark.slow),  # error bounds: BoxOSQP
         {"smoothness": 0.0, "positive": False},  # the SVD pseudo-inverse
         {"linearisation": "exp", "exp_rate": 0.01},
     ],

@@ -84,6 +84,7 @@ def test_pretraining_settings_are_checked():
         Pretraining(CAMERA, exposure=(1.0, 0.0))
 
 
+@pytest.mark.slow
 def test_latent_round_trip_and_anchored_regulariser():
     rng = np.random.default_rng(3)
     n = 8

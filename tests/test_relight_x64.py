@@ -204,6 +204,7 @@ def drawn_both_ways():
     return wide, want, got
 
 
+@pytest.mark.slow
 def test_a_world_built_under_x64_is_float64(drawn_both_ways):
     """Issue 56, item 3: the world, its responses, its scenes and the estimates on them are float64."""
     wide, _, (_, scenes, images) = drawn_both_ways
@@ -217,6 +218,7 @@ def test_a_world_built_under_x64_is_float64(drawn_both_ways):
         assert estimate_batch(grey_world, scenes.rgb, scenes.mask).illuminant.dtype == np.float64
 
 
+@pytest.mark.slow
 def test_x64_draws_the_same_scenes(drawn_both_ways):
     """Issue 56, item 3: the same key draws the same lights, surfaces, layouts and options with and
     without x64 (the indices exactly, the values to float32 rounding)."""

@@ -42,6 +42,7 @@ def test_corrects_bar_reaches_n_of_n_once_after_the_last_line(tmp_path, capsys):
     assert len(captured.out.strip().splitlines()) == 3
 
 
+@pytest.mark.slow
 def test_world_and_sharpen_print_the_digits_that_matter(capsys):
     assert cli.main(["world"]) == 0
     out = capsys.readouterr().out

@@ -145,6 +145,7 @@ def test_gradients(order, p, sigma):
         assert float(jnp.linalg.norm(gradient)) > 0
 
 
+@pytest.mark.slow
 def test_gradient_with_respect_to_the_norm():
     """``p`` is a learnable array: d(chromaticity)/dp matches finite differences (x64), is non-zero,
     and the jitted model (p traced) gives the eager answer."""

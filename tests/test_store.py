@@ -347,6 +347,7 @@ SCRIPT = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_a_second_process_fits_nothing(tmp_path):
     env = {**os.environ, "CCJAX_CACHE": str(tmp_path / "cache")}
     runs = [

@@ -2,6 +2,7 @@
 given on its command line reach the training images."""
 
 import numpy as np
+import pytest
 
 from ccjax import cli, io
 from ccjax.runs import store
@@ -10,6 +11,7 @@ BLACK = 2048
 SATURATION = 60000
 
 
+@pytest.mark.slow
 def test_black_level_and_saturation_reach_the_training_images(tmp_path):
     """Files offset by a black level and read with ``--black-level`` train the model that the same
     files without the offset train (both at one saturation level on the linear scale)."""

@@ -305,6 +305,7 @@ def test_bad_model_records_are_one_line_errors(setup, capsys, record, message):
 # tiles
 
 
+@pytest.mark.slow
 def test_tiled_grey_edge_equals_the_whole_image(monkeypatch):
     from ccjax.estimators import spatial, tiles
     from ccjax.estimators.spatial import GreyEdge
