@@ -8,6 +8,7 @@ import json
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from ccjax.estimators import conditioned, ffcc
 
@@ -78,6 +79,7 @@ def test_the_fitted_bias_and_precision_are_the_training_residuals_mean_and_inver
     assert fitted.posterior_scale == 0.75
 
 
+@pytest.mark.slow
 def test_a_model_without_the_observation_answers_as_its_ffcc_alone():
     core = ffcc.init_ffcc(16)
     rng = np.random.default_rng(2)

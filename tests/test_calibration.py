@@ -211,6 +211,7 @@ def test_batch_equals_single_fits_x64():
             np.testing.assert_allclose(np.asarray(batch.a1[b]), single.linearisation.a1, rtol=1e-8)
 
 
+@pytest.mark.slow
 def test_cross_validation_prefers_moderate_smoothing(synthetic):
     fit, cv = cal.fit_sensors_cv(
         synthetic.spectra,

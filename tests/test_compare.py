@@ -36,6 +36,7 @@ def _results_line(out: str) -> tuple[int, int, int]:
     return int(match.group(1)), int(match.group(2)), int(match.group(3))
 
 
+@pytest.mark.slow
 def test_second_compare_reads_its_fits_from_the_cache(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("CCJAX_CACHE", str(tmp_path))
     argv = ["compare", "--scenes", "20", "--surfaces", "4,8", "--methods", "GW,ECRULE-MV", "--no-progress"]
@@ -154,6 +155,7 @@ class _FailsAtSixteen(AbstractStatisticsSurfaceEstimator):
         return Estimate(illuminant=jnp.sum(rgb * weights, axis=0), status=jnp.asarray(int(Status.ESTIMATED)))
 
 
+@pytest.mark.slow
 def test_sweep_compiles_ahead_and_reports_a_failing_compile(default_world):
     # Programs are compiled on a worker thread ahead of the counts that run them: results are
     # the ones a sweep of each count alone gives, and an error raised while compiling reaches

@@ -79,6 +79,7 @@ def test_small_counts_share_one_sampler_only_where_its_draws_are_bitwise_theirs(
     assert synthetic.sampler_widths(source, sizes, {**chunks, 4: 7})[4] == 16
 
 
+@pytest.mark.slow
 def test_a_wide_sampler_gives_each_count_its_own_scenes(default_world, models):
     """Counts 4 and 8 run with 16 and 64 (one 64-slot sampler) give, cell by cell, what each count
     run alone gives (its own sampler at its own width): the same scenes, so statuses bitwise and

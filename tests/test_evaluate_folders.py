@@ -144,6 +144,7 @@ def test_world_based_methods_run_only_where_a_camera_is_given(setup, folder_sets
     assert set(report["geometric_mean"]["methods"]) == {"GW"}
 
 
+@pytest.mark.slow
 def test_the_log_chroma_mlp_needs_no_camera(setup, folder_sets):
     # It learns everything from the photographs: trained in every folder, none of which has a camera.
     argv = _argv(folder_sets, "--methods", "GW", "--folds", "3", "--train", "log-chroma-mlp", "--epochs", "1")
@@ -155,6 +156,7 @@ def test_the_log_chroma_mlp_needs_no_camera(setup, folder_sets):
     assert set(report["geometric_mean"]["methods"]) == {"GW", "log-chroma-mlp trained"}
 
 
+@pytest.mark.slow
 def test_models_of_one_folder(setup, folder_sets, capsys):
     folder = folder_sets / "alpha"
     argv = ["evaluate", str(folder), "--ground-truth-name", "groundtruth.csv", "--methods", "GW", "--folds", "3"]

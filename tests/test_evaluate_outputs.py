@@ -76,6 +76,7 @@ def test_the_error_plot_has_a_legend_in_both_panels_and_names_the_images(tmp_pat
     assert sorted(ticks) == ["a.png", "b.png", "c.png"]
 
 
+@pytest.mark.slow
 def test_training_within_folds_on_few_images_warns_once_per_method(folder, capsys):
     """6 images in 3 folds: 4 training images per fold, below the size ``--help`` names (50)."""
     argv = _argv(folder, "--folds", "3", "--train", "log-chroma-mlp", "--epochs", "1")

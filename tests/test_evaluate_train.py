@@ -55,6 +55,7 @@ def _stem(path):
     return Path(path).name
 
 
+@pytest.mark.slow
 def test_trained_models_never_see_the_fold_they_score(setup, image_set, monkeypatch, capsys):
     folder, truth = image_set
     seen = []  # the names of every training set handed to the optimiser, observed from outside

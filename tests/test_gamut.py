@@ -581,6 +581,7 @@ def test_certified_forms_give_every_maximum_on_the_grid():
     assert 0 < int(kept) < count
 
 
+@pytest.mark.slow
 def test_certified_inverse_extent_is_the_full_one_bitwise(default_world):
     """On 1,024-surface scenes, the certified fine stage's ``1/T`` equals the one over every
     form, bitwise, at every valid direction of each scene's fine grid (the same form reaches each

@@ -369,6 +369,7 @@ def test_mondrian_materials(default_world, material_tables):
     assert np.isfinite(np.asarray(metal.image)).all()
 
 
+@pytest.mark.slow
 def test_materials_run_under_x64(default_world):
     """A float32 world under ``jax_enable_x64`` (strict promotion, as the suite runs): every option
     draws in the tables' dtype, so scenes and Mondrians stay float32 and finite."""
@@ -420,6 +421,7 @@ def test_slotted_sampler_is_the_padded_sampler(material_tables, options, n_surfa
     assert not np.any(np.asarray(got.rgb[:, n_surfaces:])) and not np.any(np.asarray(got.canonical_rgb[:, n_surfaces:]))
 
 
+@pytest.mark.slow
 def test_slotted_sampler_runs_in_x64(material_tables):
     """Under jax_enable_x64 (integer aranges are int64 there) the traced count still compares
     without promotion, and the scenes are still the padded ones."""
